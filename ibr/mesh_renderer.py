@@ -1,0 +1,202 @@
+"""Basic mesh renderer: colour, camera-z depth, world position and normal (a G-buffer)
+of a textured or vertex-coloured trimesh from any `Camera`, plus a batched pass that draws
+many views of the mesh in one instanced draw call into the tiles of one framebuffer.
+
+Frames: world positions and normals are in the world frame; depth is the camera-z in
+metres (0 where nothing was hit). Images come back row-major (v, u), no flip needed
+(see `Camera.gl_projection`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import moderngl
+import numpy as np
+import trimesh
+
+from ibr.camera import Camera
+from ibr.gl import GL_CLIP_DISTANCE0, load_program, shared_context
+
+
+@dataclass(frozen=True)
+class Light:
+    """Blinn-Phong lighting used to photograph synthetic worlds.
+
+    position: (3,) world position of a point light (metres), or the direction *towards*
+        the light when `directional` is true.
+    ambient, diffuse: multipliers of the albedo; specular: strength of the highlight on
+        surfaces whose per-vertex `specular` attribute is > 0; shininess: Phong exponent.
+    """
+
+    position: tuple[float, float, float] = (0.0, 0.0, 2.4)
+    directional: bool = False
+    ambient: float = 0.45
+    diffuse: float = 0.65
+    specular: float = 0.6
+    shininess: float = 40.0
+
+
+@dataclass
+class GBuffer:
+    """One rendered view. color (H, W, 3) uint8; depth (H, W) float32 camera-z in metres;
+    world (H, W, 3) float32 world points; normal (H, W, 3) float32 unit world normals
+    facing the camera when lit; mask (H, W) bool, true where the mesh was hit."""
+
+    color: np.ndarray
+    depth: np.ndarray
+    world: np.ndarray
+    normal: np.ndarray
+    mask: np.ndarray
+
+
+def mesh_vertex_data(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Interleaved float32 vertex data (V, 13) = position 3, normal 3, uv 2, rgba 4,
+    specular 1; int32 faces (F, 3); the texture image (H, W, 3) uint8 or None."""
+    V = len(mesh.vertices)
+    uv = np.zeros((V, 2))
+    rgba = np.ones((V, 4))
+    image = None
+    visual = mesh.visual
+    if isinstance(visual, trimesh.visual.TextureVisuals) and visual.uv is not None:
+        uv = np.asarray(visual.uv, dtype=np.float64)
+        material = visual.material
+        img = getattr(material, "image", None) or getattr(material, "baseColorTexture", None)
+        if img is not None:
+            image = np.asarray(img.convert("RGB"))
+    elif visual.kind == "vertex":
+        rgba = np.asarray(visual.vertex_colors, dtype=np.float64) / 255.0
+    elif visual.kind == "face":  # expand face colours onto vertices (last face wins)
+        rgba[mesh.faces.ravel()] = np.repeat(visual.face_colors / 255.0, 3, axis=0)
+    specular = np.asarray(mesh.vertex_attributes.get("specular", np.zeros(V)), dtype=np.float64)
+    data = np.c_[mesh.vertices, mesh.vertex_normals, uv, rgba, specular.reshape(V, 1)]
+    return data.astype("f4"), np.asarray(mesh.faces, dtype="i4"), image
+
+
+class MeshRenderer:
+    """Renders one mesh. `render(camera)` gives a `GBuffer`; `render_batch(cameras)` draws
+    all cameras (same size) in one instanced pass and returns their colours and depths."""
+
+    ATTRS = ("in_position", "in_normal", "in_uv", "in_color", "in_specular")
+
+    def __init__(self, mesh: trimesh.Trimesh, ctx: moderngl.Context | None = None,
+                 background=(0.0, 0.0, 0.0), near: float = 0.05, far: float = 1000.0):
+        self.ctx = ctx or shared_context()
+        self.background = tuple(background)
+        self.near, self.far = near, far
+        data, faces, image = mesh_vertex_data(mesh)
+        self.n_triangles = len(faces)
+        self.vbo = self.ctx.buffer(data.tobytes())
+        self.ibo = self.ctx.buffer(faces.tobytes())
+        self.texture = self._upload_texture(image)
+        self.prog = load_program(self.ctx, "mesh", {"BATCHED": 0})
+        self.prog_batched = load_program(self.ctx, "mesh", {"BATCHED": 1})
+        self.vao = self.ctx.vertex_array(
+            self.prog, [(self.vbo, "3f4 3f4 2f4 4f4 1f4", *self.ATTRS)], self.ibo)
+        self._fbos: dict[tuple[int, int], moderngl.Framebuffer] = {}
+
+    def _upload_texture(self, image: np.ndarray | None) -> moderngl.Texture:
+        if image is None:
+            image = np.full((1, 1, 3), 255, np.uint8)
+        limit = self.ctx.info["GL_MAX_TEXTURE_SIZE"]
+        if max(image.shape[:2]) > limit:
+            import cv2
+            s = limit / max(image.shape[:2])
+            image = cv2.resize(image, None, fx=s, fy=s, interpolation=cv2.INTER_AREA)
+        h, w = image.shape[:2]
+        # trimesh's uv has v = 0 at the image's bottom row; GL's t = 0 is the first row sent
+        tex = self.ctx.texture((w, h), 3, np.ascontiguousarray(image[::-1]).tobytes(), alignment=1)
+        tex.build_mipmaps()
+        tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        tex.anisotropy = 8.0
+        return tex
+
+    def _fbo(self, width: int, height: int) -> moderngl.Framebuffer:
+        key = (width, height)
+        if key not in self._fbos:
+            size = (width, height)
+            self._fbos[key] = self.ctx.framebuffer(
+                color_attachments=[self.ctx.texture(size, 4, dtype="f1"),
+                                   self.ctx.texture(size, 4, dtype="f4"),
+                                   self.ctx.texture(size, 4, dtype="f4"),
+                                   self.ctx.texture(size, 1, dtype="f4")],
+                depth_attachment=self.ctx.depth_renderbuffer(size))
+        return self._fbos[key]
+
+    def _begin(self, fbo: moderngl.Framebuffer, prog: moderngl.Program):
+        fbo.use()
+        fbo.viewport = (0, 0, *fbo.size)
+        fbo.clear(0.0, 0.0, 0.0, 0.0, 1.0)  # every attachment reads 0 where nothing is drawn
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.disable(moderngl.CULL_FACE)
+        self.texture.use(0)
+        prog["u_texture"] = 0
+
+    def render(self, camera: Camera, light: Light | None = None) -> GBuffer:
+        """G-buffer of the mesh seen by `camera`; lit with Blinn-Phong when `light` is given."""
+        W, H = camera.width, camera.height
+        fbo = self._fbo(W, H)
+        self._begin(fbo, self.prog)
+        self.prog["u_clip_from_world"].write(
+            camera.gl_clip_from_world(self.near, self.far).T.astype("f4").tobytes())
+        self.prog["u_lit"] = light is not None
+        if light is not None:
+            self.prog["u_eye"] = tuple(camera.center)
+            self.prog["u_light"] = (*light.position, 0.0 if light.directional else 1.0)
+            self.prog["u_light_terms"] = (light.ambient, light.diffuse, light.specular)
+            self.prog["u_shininess"] = light.shininess
+        self.vao.render(moderngl.TRIANGLES)
+        color = np.frombuffer(fbo.read(components=3, attachment=0), np.uint8).reshape(H, W, 3)
+        world = np.frombuffer(fbo.read(components=4, attachment=1, dtype="f4"), "f4").reshape(H, W, 4)
+        normal = np.frombuffer(fbo.read(components=4, attachment=2, dtype="f4"), "f4").reshape(H, W, 4)
+        depth = np.frombuffer(fbo.read(components=1, attachment=3, dtype="f4"), "f4").reshape(H, W)
+        mask = world[..., 3] > 0.5
+        return GBuffer(self._with_background(color, mask), depth.copy(), world[..., :3].copy(),
+                       normal[..., :3].copy(), mask)
+
+    def _with_background(self, color: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        color = color.copy()
+        color[~mask] = np.round(np.asarray(self.background) * 255).astype(np.uint8)
+        return color
+
+    def render_batch(self, cameras: list[Camera]) -> tuple[np.ndarray, np.ndarray]:
+        """Unlit colour (N, H, W, 3) uint8 and camera-z depth (N, H, W) float32 of N
+        same-sized cameras, drawn with one instanced call into an atlas of N tiles."""
+        W, H = cameras[0].width, cameras[0].height
+        if any((c.width, c.height) != (W, H) for c in cameras):
+            raise ValueError("render_batch needs cameras of one size")
+        limit = self.ctx.info["GL_MAX_TEXTURE_SIZE"]
+        cols = max(1, min(len(cameras), limit // W))
+        rows = -(-len(cameras) // cols)
+        if rows * H > limit:
+            raise ValueError(f"{len(cameras)} views of {W}x{H} exceed one {limit}px atlas")
+        fbo = self._fbo(cols * W, rows * H)
+        self._begin(fbo, self.prog_batched)
+        k = np.arange(len(cameras))
+        inst = np.c_[np.stack([c.gl_clip_from_world(self.near, self.far).T.ravel() for c in cameras]),
+                     k % cols, k // cols].astype("f4")
+        ibuf = self.ctx.buffer(inst.tobytes())
+        vao = self.ctx.vertex_array(self.prog_batched, [
+            (self.vbo, "3f4 3f4 2f4 4f4 1f4", *self.ATTRS),
+            (ibuf, "16f4 2f4/i", "in_clip_from_world", "in_tile")], self.ibo)
+        self.prog_batched["u_tiles"] = (float(cols), float(rows))
+        self.prog_batched["u_lit"] = False
+        for i in range(4):
+            self.ctx.enable_direct(GL_CLIP_DISTANCE0 + i)
+        vao.render(moderngl.TRIANGLES, instances=len(cameras))
+        for i in range(4):
+            self.ctx.disable_direct(GL_CLIP_DISTANCE0 + i)
+        color = np.frombuffer(fbo.read(components=3, attachment=0), np.uint8)
+        depth = np.frombuffer(fbo.read(components=1, attachment=3, dtype="f4"), "f4")
+        vao.release()
+        ibuf.release()
+        depth = _untile(depth.reshape(rows * H, cols * W), H, W, len(cameras))
+        color = _untile(color.reshape(rows * H, cols * W, 3), H, W, len(cameras))
+        return self._with_background(color, depth > 0), depth
+
+
+def _untile(atlas: np.ndarray, H: int, W: int, n: int) -> np.ndarray:
+    """(rows*H, cols*W, ...) atlas -> (n, H, W, ...) views in tile order (row-major)."""
+    rows, cols = atlas.shape[0] // H, atlas.shape[1] // W
+    tiles = atlas.reshape(rows, H, cols, W, *atlas.shape[2:]).swapaxes(1, 2)
+    return tiles.reshape(rows * cols, H, W, *atlas.shape[2:])[:n].copy()

@@ -1,0 +1,218 @@
+"""`Scene`: posed images (+ optional proxy mesh and points), and `load_scene(spec)`.
+
+A spec is a path (a Strecha-format folder or a COLMAP model folder) or
+`synthetic:NAME[?seed=N&views=N&width=W&height=H]`. Every bad input raises one
+`SceneError` that names the offending file. Nothing downstream knows a file format.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from urllib.parse import parse_qsl
+
+import numpy as np
+import trimesh
+from PIL import Image, UnidentifiedImageError
+
+from ibr.camera import Camera, CameraError
+from ibr.errors import InputError
+
+IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".tif", ".tiff", ".bmp", ".ppm"}
+
+
+class SceneError(InputError):
+    """A scene that cannot be loaded; the message names the file and what is wrong."""
+
+
+@dataclass(eq=False)
+class View:
+    """One posed photo: its camera (named after the image) and its pixels (H, W, 3) uint8."""
+
+    camera: Camera
+    image: np.ndarray
+    path: Path | None = None
+
+    @property
+    def name(self) -> str:
+        return self.camera.name
+
+
+@dataclass(eq=False)
+class Scene:
+    """Posed images of one place.
+
+    views: the photos. mesh: proxy or ground-truth geometry (world frame, metres) or None.
+    points: (N, 3) world points (e.g. SfM) or None; point_colors (N, 3) uint8.
+    root: the folder it came from, where derived data is cached (None for synthetic).
+    world: the `SyntheticWorld` for synthetic scenes (floor plan, photographer), else None.
+    """
+
+    name: str
+    views: list[View]
+    mesh: trimesh.Trimesh | None = None
+    points: np.ndarray | None = None
+    point_colors: np.ndarray | None = None
+    root: Path | None = None
+    world: object | None = None
+    meta: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.views)
+
+    def __iter__(self):
+        return iter(self.views)
+
+    @property
+    def cameras(self) -> list[Camera]:
+        return [v.camera for v in self.views]
+
+    def view(self, name: str) -> View:
+        for v in self.views:
+            if v.name == name:
+                return v
+        raise SceneError(f"scene {self.name!r} has no view {name!r}; it has "
+                         f"{', '.join(v.name for v in self.views[:8])}{' ...' if len(self) > 8 else ''}")
+
+    def without(self, name: str) -> "Scene":
+        """The scene minus one view (for leave-one-out evaluation)."""
+        self.view(name)
+        return replace(self, views=[v for v in self.views if v.name != name])
+
+
+def read_image(path: str | Path, expected_size: tuple[int, int] | None = None) -> np.ndarray:
+    """Read an image file as (H, W, 3) uint8 RGB. Raises SceneError naming the file if it is
+    missing, unreadable, truncated, or not `expected_size` (width, height)."""
+    path = Path(path)
+    if not path.is_file():
+        raise SceneError(f"{path}: image file not found")
+    try:
+        with Image.open(path) as im:
+            im.load()  # decodes fully: a truncated file raises here
+            rgb = np.asarray(im.convert("RGB"))
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as e:
+        raise SceneError(f"{path}: unreadable or truncated image ({e})") from None
+    if expected_size is not None and (rgb.shape[1], rgb.shape[0]) != tuple(expected_size):
+        raise SceneError(f"{path}: image is {rgb.shape[1]}x{rgb.shape[0]} but its camera says "
+                         f"{expected_size[0]}x{expected_size[1]}")
+    return rgb
+
+
+def load_strecha(folder: str | Path) -> Scene:
+    """A Strecha-format folder: `images/NAME` with `cameras/NAME.camera` for each image."""
+    folder = Path(folder)
+    images = sorted(p for p in (folder / "images").iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+    if not images:
+        raise SceneError(f"{folder / 'images'}: no images found")
+    views = []
+    for img_path in images:
+        cam_path = folder / "cameras" / f"{img_path.name}.camera"
+        if not cam_path.is_file():
+            raise SceneError(f"{cam_path}: camera file missing for image {img_path}")
+        try:
+            cam = Camera.from_strecha_file(cam_path, name=img_path.name)
+        except CameraError as e:
+            raise SceneError(str(e)) from None
+        views.append(View(cam, read_image(img_path, (cam.width, cam.height)), img_path))
+    return Scene(folder.name, views, root=folder)
+
+
+def find_colmap_model(folder: Path) -> Path | None:
+    """The folder holding cameras.bin/.txt: `folder`, `folder/sparse/0` or `folder/sparse`."""
+    for cand in (folder, folder / "sparse" / "0", folder / "sparse"):
+        if (cand / "cameras.bin").is_file() or (cand / "cameras.txt").is_file():
+            return cand
+    return None
+
+
+# COLMAP camera models whose extra parameters map onto OpenCV distortion coefficients
+_COLMAP_TO_OPENCV = {
+    "SIMPLE_PINHOLE": lambda p: None,
+    "PINHOLE": lambda p: None,
+    "SIMPLE_RADIAL": lambda p: np.array([p[3], 0, 0, 0]),
+    "RADIAL": lambda p: np.array([p[3], p[4], 0, 0]),
+    "OPENCV": lambda p: np.array(p[4:8]),
+}
+
+
+def load_colmap(folder: str | Path, image_dir: str | Path | None = None) -> Scene:
+    """A COLMAP sparse model (through pycolmap) with its images; distorted images are
+    undistorted to the model's pinhole K. Images are looked for in `image_dir`, else
+    `folder/images`, else the model folder's parents' `images/`."""
+    import cv2
+    import pycolmap
+
+    folder = Path(folder)
+    model = find_colmap_model(folder)
+    if model is None:
+        raise SceneError(f"{folder}: no COLMAP model (cameras.bin/txt) here or in sparse/0")
+    try:
+        rec = pycolmap.Reconstruction(str(model))
+    except Exception as e:  # pycolmap raises its own errors for corrupt files
+        raise SceneError(f"{model}: unreadable COLMAP model ({e})") from None
+    candidates = [Path(image_dir)] if image_dir else [folder / "images", *[p / "images" for p in model.parents]]
+    img_root = next((c for c in candidates if c.is_dir()), None)
+    if img_root is None:
+        raise SceneError(f"{folder}: no images/ folder found for the COLMAP model in {model}")
+    views = []
+    for image_id in sorted(rec.reg_image_ids()):
+        image = rec.image(image_id)
+        cam_model = image.camera.model_name
+        if cam_model not in _COLMAP_TO_OPENCV:
+            raise SceneError(f"{model}: camera model {cam_model} of image {image.name} is not "
+                             f"supported; use one of {sorted(_COLMAP_TO_OPENCV)}")
+        try:
+            cam = Camera.from_pycolmap(image)
+        except CameraError as e:
+            raise SceneError(f"{model}: {e}") from None
+        rgb = read_image(img_root / image.name, (cam.width, cam.height))
+        dist = _COLMAP_TO_OPENCV[cam_model](list(image.camera.params))
+        if dist is not None and np.any(dist != 0):
+            rgb = cv2.undistort(rgb, cam.K, dist)
+        views.append(View(cam, rgb, img_root / image.name))
+    if not views:
+        raise SceneError(f"{model}: the COLMAP model has no registered images")
+    pts = rec.points3D
+    xyz = np.array([p.xyz for p in pts.values()]).reshape(-1, 3)
+    rgb = np.array([p.color for p in pts.values()], dtype=np.uint8).reshape(-1, 3)
+    return Scene(folder.name, views, points=xyz, point_colors=rgb, root=folder)
+
+
+def load_synthetic(spec: str) -> Scene:
+    """`synthetic:NAME[?seed=N&views=N&width=W&height=H]`: photos of a synthetic world
+    from its default cameras; the ground-truth mesh is the scene's mesh."""
+    from ibr.synthetic import WORLDS, make_world
+
+    body = spec.split(":", 1)[1]
+    name, _, query = body.partition("?")
+    try:
+        params = {k: int(v) for k, v in parse_qsl(query, strict_parsing=bool(query))}
+    except ValueError:
+        raise SceneError(f"{spec}: bad query; expected e.g. synthetic:office?seed=1&views=24") from None
+    unknown = set(params) - {"seed", "views", "width", "height"}
+    if unknown or name not in WORLDS:
+        raise SceneError(f"{spec}: expected synthetic:NAME[?seed=N&views=N&width=W&height=H] "
+                         f"with NAME in {sorted(WORLDS)}")
+    world = make_world(name, params.get("seed", 0))
+    cams = world.default_cameras(params.get("views", 24), params.get("width", 640),
+                                 params.get("height", 480))
+    views = [View(c, world.photograph(c)) for c in cams]
+    return Scene(f"synthetic:{name}", views, mesh=world.mesh, world=world,
+                 meta={"seed": world.seed})
+
+
+def load_scene(spec: str | Path) -> Scene:
+    """Load a scene from a path (Strecha folder or COLMAP model folder) or a
+    `synthetic:NAME[?seed=N]` spec. Raises SceneError naming the bad input."""
+    s = str(spec)
+    if s.startswith("synthetic:"):
+        return load_synthetic(s)
+    path = Path(s)
+    if not path.exists():
+        raise SceneError(f"{path}: no such scene folder (or use synthetic:office)")
+    if (path / "cameras").is_dir() and (path / "images").is_dir():
+        return load_strecha(path)
+    if find_colmap_model(path) is not None:
+        return load_colmap(path)
+    raise SceneError(f"{path}: not a scene folder; expected images/ + cameras/ (Strecha) or a "
+                     "COLMAP model (cameras.bin, images.bin, points3D.bin, here or in sparse/0)")

@@ -1,0 +1,84 @@
+// Mesh renderer: colour (optionally lit), world position, normal and camera-z depth.
+// BATCHED: one instance per view, each drawn into its own tile of an atlas framebuffer;
+// gl_ClipDistance keeps every view inside its tile (see ibr/mesh_renderer.py).
+
+#if defined VERTEX_SHADER
+in vec3 in_position;
+in vec3 in_normal;
+in vec2 in_uv;
+in vec4 in_color;
+in float in_specular;
+#if BATCHED
+in mat4 in_clip_from_world;  // per instance
+in vec2 in_tile;             // per instance: (column, row) of the view's tile
+uniform vec2 u_tiles;        // (columns, rows) of the atlas
+out float gl_ClipDistance[4];
+#else
+uniform mat4 u_clip_from_world;
+#endif
+out vec3 v_world;
+out vec3 v_normal;
+out vec2 v_uv;
+out vec4 v_color;
+out float v_specular;
+out float v_depth;
+
+void main() {
+#if BATCHED
+    vec4 clip = in_clip_from_world * vec4(in_position, 1.0);
+    gl_ClipDistance[0] = clip.w - clip.x;
+    gl_ClipDistance[1] = clip.w + clip.x;
+    gl_ClipDistance[2] = clip.w - clip.y;
+    gl_ClipDistance[3] = clip.w + clip.y;
+    // ndc_atlas = (ndc + 1) / tiles + 2 tile / tiles - 1, written in clip space
+    clip.xy = (clip.xy + clip.w) / u_tiles + clip.w * (2.0 * in_tile / u_tiles - 1.0);
+#else
+    vec4 clip = u_clip_from_world * vec4(in_position, 1.0);
+#endif
+    v_world = in_position;
+    v_normal = in_normal;
+    v_uv = in_uv;
+    v_color = in_color;
+    v_specular = in_specular;
+    v_depth = clip.w;  // Camera.gl_projection puts camera z in w
+    gl_Position = clip;
+}
+#endif
+
+#if defined FRAGMENT_SHADER
+in vec3 v_world;
+in vec3 v_normal;
+in vec2 v_uv;
+in vec4 v_color;
+in float v_specular;
+in float v_depth;
+uniform sampler2D u_texture;
+uniform bool u_lit;
+uniform vec3 u_eye;          // camera centre, world
+uniform vec4 u_light;        // xyz: position (w = 1) or direction towards the light (w = 0)
+uniform vec3 u_light_terms;  // ambient, diffuse, specular strength
+uniform float u_shininess;
+layout(location = 0) out vec4 f_color;
+layout(location = 1) out vec4 f_world;
+layout(location = 2) out vec4 f_normal;
+layout(location = 3) out float f_depth;
+
+void main() {
+    vec3 albedo = texture(u_texture, v_uv).rgb * v_color.rgb;
+    vec3 n = normalize(v_normal);
+    vec3 rgb = albedo;
+    if (u_lit) {
+        vec3 V = normalize(u_eye - v_world);
+        if (dot(n, V) < 0.0) n = -n;  // two-sided
+        vec3 L = normalize(u_light.w > 0.5 ? u_light.xyz - v_world : u_light.xyz);
+        vec3 H = normalize(L + V);
+        float diffuse = max(dot(n, L), 0.0);
+        float specular = v_specular * u_light_terms.z * pow(max(dot(n, H), 0.0), u_shininess);
+        rgb = albedo * (u_light_terms.x + u_light_terms.y * diffuse) + vec3(specular);
+    }
+    f_color = vec4(clamp(rgb, 0.0, 1.0), 1.0);
+    f_world = vec4(v_world, 1.0);
+    f_normal = vec4(n, 1.0);
+    f_depth = v_depth;
+}
+#endif

@@ -1,0 +1,1 @@
+"""The `ibrnav` console script: the one place that imports all four packages."""

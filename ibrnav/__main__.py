@@ -1,0 +1,5 @@
+import sys
+
+from ibrnav.cli import main
+
+sys.exit(main())

@@ -1,0 +1,34 @@
+"""`ibrnav`: one console script; each package keeps its own subcommands in its `cli.py`
+(a `register(subparsers)` function) and this module only gathers them."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ibr import cli as ibr_cli
+from ibr.errors import InputError
+from ibr.gl import GLContextError
+from ibrnav import bench
+from robot import cli as robot_cli
+
+PACKAGE_CLIS = (ibr_cli, robot_cli, bench)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="ibrnav", description="Image-based rendering, localisation and view planning "
+        "for robots that see with a camera. Every command records to rerun.")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for module in PACKAGE_CLIS:
+        module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except (InputError, GLContextError) as e:  # they name the bad input: no traceback
+        print(f"ibrnav {args.command}: error: {e}", file=sys.stderr)
+        return 2

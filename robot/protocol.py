@@ -1,0 +1,93 @@
+"""The `Robot` protocol every body implements (the simulator, the NXT over a serial port).
+
+Frames: the robot frame has x forward, y left, z up, origin on the floor between the
+wheels; a robot pose is SE(2) (x, y, theta) of that frame in the world (metres, radians).
+The camera is fixed on the robot: `cam_from_robot` (4x4) is the mount transform.
+Odometry poses live in the robot's own odometry frame (where it started), not the world.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from ibr.camera import Camera, rigid
+
+
+@dataclass(frozen=True)
+class MotionResult:
+    """What a drive or turn command reports. odometry_delta: (3,) change of the odometry
+    pose (dx, dy, dtheta) in the odometry frame; bumper_front/bumper_rear: a touch
+    sensor fired; stalled: the motors were blocked (no bumper saw the obstacle)."""
+
+    odometry_delta: np.ndarray
+    bumper_front: bool = False
+    bumper_rear: bool = False
+    stalled: bool = False
+
+    @property
+    def blocked(self) -> bool:
+        return self.bumper_front or self.bumper_rear or self.stalled
+
+
+@dataclass(frozen=True)
+class Photo:
+    """A photo taken by the robot's camera, with the readings taken with it.
+
+    image: (H, W, 3) uint8. time_s: sensor time (s). odometry: (3,) odometry pose when the
+    shutter fired. compass_rad: heading from the compass (rad, world frame, noisy).
+    range_m: ultrasonic range (m). index: 0-based photo counter of the session.
+    No ground truth here: a simulator keeps it apart (`SimRobot.truth`)."""
+
+    image: np.ndarray
+    time_s: float
+    odometry: np.ndarray
+    compass_rad: float
+    range_m: float
+    index: int
+
+
+@runtime_checkable
+class Robot(Protocol):
+    """A differential-drive robot with a camera, compass, ultrasonic and two bumpers."""
+
+    intrinsics: np.ndarray  # (3, 3) K of the camera, pixels
+    image_size: tuple[int, int]  # (width, height) pixels
+    cam_from_robot: np.ndarray  # (4, 4) mount transform
+
+    def drive(self, distance_m: float) -> MotionResult: ...
+    def turn(self, angle_rad: float) -> MotionResult: ...
+    def odometry(self) -> np.ndarray: ...
+    def compass(self) -> float: ...
+    def ultrasonic(self) -> float: ...
+    def bumpers(self) -> tuple[bool, bool]: ...
+    def capture(self) -> Photo: ...
+    def stop(self) -> None: ...
+
+
+def se2_matrix(pose: np.ndarray) -> np.ndarray:
+    """4x4 `world_from_robot` of an SE(2) pose (x, y, theta) on the floor (z = 0)."""
+    x, y, th = pose
+    c, s = np.cos(th), np.sin(th)
+    return rigid(np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]]), [x, y, 0.0])
+
+
+def forward_camera_mount(height_m: float, forward_m: float = 0.05,
+                         tilt_down_rad: float = 0.0) -> np.ndarray:
+    """`cam_from_robot` of a camera `height_m` above the floor, `forward_m` ahead of the
+    axle, looking along the robot's x axis, pitched down by `tilt_down_rad`."""
+    c, s = np.cos(tilt_down_rad), np.sin(tilt_down_rad)
+    # camera axes in robot coordinates: x_cam = -y_robot, z_cam = x_robot pitched down
+    z = np.array([c, 0, -s])
+    x = np.array([0, -1.0, 0])
+    robot_from_cam = rigid(np.stack([x, np.cross(z, x), z], axis=1), [forward_m, 0, height_m])
+    return np.linalg.inv(robot_from_cam)
+
+
+def robot_camera(robot_pose: np.ndarray, K: np.ndarray, size: tuple[int, int],
+                 cam_from_robot: np.ndarray, name: str = "") -> Camera:
+    """The world `Camera` of a robot at SE(2) pose `robot_pose`."""
+    robot_from_world = np.linalg.inv(se2_matrix(robot_pose))
+    return Camera(K, size[0], size[1], cam_from_robot @ robot_from_world, name)
