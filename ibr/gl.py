@@ -48,7 +48,7 @@ def load_program(ctx: moderngl.Context, name: str, defines: dict | None = None,
                  varyings: tuple[str, ...] = ()) -> moderngl.Program:
     """Compile `ibr/shaders/<name>.glsl`, whose stages are selected with
     `#if defined VERTEX_SHADER` / `FRAGMENT_SHADER` / `GEOMETRY_SHADER` (moderngl-window style)."""
-    source = resources.files("ibr").joinpath("shaders", f"{name}.glsl").read_text()
+    source = (resources.files("ibr") / "shaders" / f"{name}.glsl").read_text()
     head = "#version 430 core\n" + "".join(f"#define {k} {v}\n" for k, v in (defines or {}).items())
 
     def stage(define):

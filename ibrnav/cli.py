@@ -12,6 +12,7 @@ from ibr.gl import GLContextError
 from ibrnav import bench
 from robot import cli as robot_cli
 
+
 PACKAGE_CLIS = (ibr_cli, robot_cli, bench)
 
 

@@ -1,0 +1,64 @@
+"""End-to-end runs of the `ibrnav` command as a user types it."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+BIN = Path(sys.executable).parent
+
+
+def ibrnav(*args, cwd=None):
+    return subprocess.run([str(BIN / "ibrnav"), *map(str, args)], capture_output=True, text=True,
+                          cwd=cwd, timeout=600)
+
+
+def rrd_entities(rrd: Path) -> str:
+    stats = subprocess.run([str(BIN / "rerun"), "rrd", "stats", str(rrd)], capture_output=True, text=True)
+    assert stats.returncode == 0, stats.stderr
+    return subprocess.run([str(BIN / "rerun"), "rrd", "print", str(rrd)], capture_output=True,
+                          text=True).stdout
+
+
+def test_demo_writes_a_recording_with_images_poses_and_map(tmp_path):
+    rrd = tmp_path / "demo.rrd"
+    run = ibrnav("demo", "--max-legs", "6", "--width", "64", "--height", "48", "--save", rrd)
+    assert run.returncode == 0, run.stderr
+    assert "6 photos" in run.stdout
+    printed = rrd_entities(rrd)
+    for entity in ("/world/robot/camera/image", "/world/robot", "/world/estimate", "/world/map/mesh",
+                   "/world/plan/path", "plots/ultrasonic_m"):
+        assert entity in printed, entity
+
+
+def test_demo_records_to_a_default_file_without_flags(tmp_path):
+    run = ibrnav("demo", "--max-legs", "2", "--width", "32", "--height", "24", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert (tmp_path / "ibrnav_demo.rrd").stat().st_size > 0
+
+
+def test_scene_show_logs_cameras_and_geometry(tmp_path, strecha_dir):
+    rrd = tmp_path / "scene.rrd"
+    run = ibrnav("scene", "show", strecha_dir / "Herz-Jesus-P8", "--save", rrd)
+    assert run.returncode == 0, run.stderr
+    assert "8 views" in run.stdout
+    assert "/world/cameras/0003_jpg/image" in rrd_entities(rrd)
+
+
+def test_bad_scene_is_one_clear_line(tmp_path):
+    run = ibrnav("scene", "show", tmp_path / "missing", "--save", tmp_path / "x.rrd")
+    assert run.returncode == 2
+    assert "missing: no such scene folder" in run.stderr
+    assert "Traceback" not in run.stderr
+
+
+@pytest.mark.slow
+def test_bench_writes_json(tmp_path):
+    out = tmp_path / "bench.json"
+    run = ibrnav("bench", "--only", "mesh_views_per_s_64x48", "--json", out)
+    assert run.returncode == 0, run.stderr
+    fig = json.loads(out.read_text())["figures"]["mesh_views_per_s_64x48"]
+    assert set(fig) == {"value", "unit", "baseline", "ratio"}
+    assert fig["ratio"] == pytest.approx(fig["value"] / fig["baseline"])
