@@ -139,12 +139,9 @@ class MeshRenderer:
         self._begin(fbo, self.prog)
         self.prog["u_clip_from_world"].write(
             camera.gl_clip_from_world(self.near, self.far).T.astype("f4").tobytes())
-        self.prog["u_lit"] = light is not None
+        self._set_light(self.prog, light)
         if light is not None:
             self.prog["u_eye"] = tuple(camera.center)
-            self.prog["u_light"] = (*light.position, 0.0 if light.directional else 1.0)
-            self.prog["u_light_terms"] = (light.ambient, light.diffuse, light.specular)
-            self.prog["u_shininess"] = light.shininess
         self.vao.render(moderngl.TRIANGLES)
         color = np.frombuffer(fbo.read(components=3, attachment=0), np.uint8).reshape(H, W, 3)
         world = np.frombuffer(fbo.read(components=4, attachment=1, dtype="f4"), "f4").reshape(H, W, 4)
@@ -159,40 +156,61 @@ class MeshRenderer:
         color[~mask] = np.round(np.asarray(self.background) * 255).astype(np.uint8)
         return color
 
-    def render_batch(self, cameras: list[Camera]) -> tuple[np.ndarray, np.ndarray]:
-        """Unlit colour (N, H, W, 3) uint8 and camera-z depth (N, H, W) float32 of N
-        same-sized cameras, drawn with one instanced call into an atlas of N tiles."""
+    def _set_light(self, prog: moderngl.Program, light: Light | None) -> None:
+        prog["u_lit"] = light is not None
+        if light is not None:
+            prog["u_light"] = (*light.position, 0.0 if light.directional else 1.0)
+            prog["u_light_terms"] = (light.ambient, light.diffuse, light.specular)
+            prog["u_shininess"] = light.shininess
+
+    def atlas_layout(self, n: int, width: int, height: int) -> tuple[int, int]:
+        """(columns, rows) of the atlas that holds n views of width x height pixels."""
+        limit = self.ctx.info["GL_MAX_TEXTURE_SIZE"]
+        cols = max(1, min(n, limit // width))
+        rows = -(-n // cols)
+        if rows * height > limit:
+            raise ValueError(f"{n} views of {width}x{height} exceed one {limit}px atlas")
+        return cols, rows
+
+    def draw_batch(self, cameras: list[Camera], light: Light | None = None) -> tuple[moderngl.Framebuffer, int]:
+        """Draw N same-sized views with one instanced call into the tiles of an atlas
+        framebuffer (view k at column k % cols, row k // cols) and leave them on the GPU.
+        Returns the framebuffer (attachments: colour, world, normal, camera-z depth, as in
+        `render`) and the number of columns."""
         W, H = cameras[0].width, cameras[0].height
         if any((c.width, c.height) != (W, H) for c in cameras):
-            raise ValueError("render_batch needs cameras of one size")
-        limit = self.ctx.info["GL_MAX_TEXTURE_SIZE"]
-        cols = max(1, min(len(cameras), limit // W))
-        rows = -(-len(cameras) // cols)
-        if rows * H > limit:
-            raise ValueError(f"{len(cameras)} views of {W}x{H} exceed one {limit}px atlas")
+            raise ValueError("draw_batch needs cameras of one size")
+        cols, rows = self.atlas_layout(len(cameras), W, H)
         fbo = self._fbo(cols * W, rows * H)
         self._begin(fbo, self.prog_batched)
         k = np.arange(len(cameras))
         inst = np.c_[np.stack([c.gl_clip_from_world(self.near, self.far).T.ravel() for c in cameras]),
-                     k % cols, k // cols].astype("f4")
+                     k % cols, k // cols, np.stack([c.center for c in cameras])].astype("f4")
         ibuf = self.ctx.buffer(inst.tobytes())
         vao = self.ctx.vertex_array(self.prog_batched, [
             (self.vbo, "3f4 3f4 2f4 4f4 1f4", *self.ATTRS),
-            (ibuf, "16f4 2f4/i", "in_clip_from_world", "in_tile")], self.ibo)
+            (ibuf, "16f4 2f4 3f4/i", "in_clip_from_world", "in_tile", "in_eye")], self.ibo)
         self.prog_batched["u_tiles"] = (float(cols), float(rows))
-        self.prog_batched["u_lit"] = False
+        self._set_light(self.prog_batched, light)
         for i in range(4):
             self.ctx.enable_direct(GL_CLIP_DISTANCE0 + i)
         vao.render(moderngl.TRIANGLES, instances=len(cameras))
         for i in range(4):
             self.ctx.disable_direct(GL_CLIP_DISTANCE0 + i)
-        color = np.frombuffer(fbo.read(components=3, attachment=0), np.uint8)
-        depth = np.frombuffer(fbo.read(components=1, attachment=3, dtype="f4"), "f4")
         vao.release()
         ibuf.release()
-        depth = _untile(depth.reshape(rows * H, cols * W), H, W, len(cameras))
-        color = _untile(color.reshape(rows * H, cols * W, 3), H, W, len(cameras))
-        return self._with_background(color, depth > 0), depth
+        return fbo, cols
+
+    def render_batch(self, cameras: list[Camera], light: Light | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Colour (N, H, W, 3) uint8 and camera-z depth (N, H, W) float32 of N same-sized
+        cameras, drawn by `draw_batch` in one call and read back."""
+        fbo, _ = self.draw_batch(cameras, light)
+        W, H = cameras[0].width, cameras[0].height
+        aw, ah = fbo.size
+        color = np.frombuffer(fbo.read(components=3, attachment=0), np.uint8).reshape(ah, aw, 3)
+        depth = np.frombuffer(fbo.read(components=1, attachment=3, dtype="f4"), "f4").reshape(ah, aw)
+        depth = _untile(depth, H, W, len(cameras))
+        return self._with_background(_untile(color, H, W, len(cameras)), depth > 0), depth
 
 
 def _untile(atlas: np.ndarray, H: int, W: int, n: int) -> np.ndarray:

@@ -150,7 +150,8 @@ def load_colmap(folder: str | Path, image_dir: str | Path | None = None) -> Scen
         rec = pycolmap.Reconstruction(str(model))
     except Exception as e:  # pycolmap raises its own errors for corrupt files
         raise SceneError(f"{model}: unreadable COLMAP model ({e})") from None
-    candidates = [Path(image_dir)] if image_dir else [folder / "images", *[p / "images" for p in model.parents]]
+    candidates = [Path(image_dir)] if image_dir else [folder / "images",
+                                                      *[p / "images" for p in list(model.parents)[:3]]]
     img_root = next((c for c in candidates if c.is_dir()), None)
     if img_root is None:
         raise SceneError(f"{folder}: no images/ folder found for the COLMAP model in {model}")

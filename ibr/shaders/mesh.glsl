@@ -11,12 +11,15 @@ in float in_specular;
 #if BATCHED
 in mat4 in_clip_from_world;  // per instance
 in vec2 in_tile;             // per instance: (column, row) of the view's tile
+in vec3 in_eye;              // per instance: camera centre, world
 uniform vec2 u_tiles;        // (columns, rows) of the atlas
 out float gl_ClipDistance[4];
 #else
 uniform mat4 u_clip_from_world;
+uniform vec3 u_eye;          // camera centre, world
 #endif
 out vec3 v_world;
+flat out vec3 v_eye;
 out vec3 v_normal;
 out vec2 v_uv;
 out vec4 v_color;
@@ -32,8 +35,10 @@ void main() {
     gl_ClipDistance[3] = clip.w + clip.y;
     // ndc_atlas = (ndc + 1) / tiles + 2 tile / tiles - 1, written in clip space
     clip.xy = (clip.xy + clip.w) / u_tiles + clip.w * (2.0 * in_tile / u_tiles - 1.0);
+    v_eye = in_eye;
 #else
     vec4 clip = u_clip_from_world * vec4(in_position, 1.0);
+    v_eye = u_eye;
 #endif
     v_world = in_position;
     v_normal = in_normal;
@@ -52,9 +57,9 @@ in vec2 v_uv;
 in vec4 v_color;
 in float v_specular;
 in float v_depth;
+flat in vec3 v_eye;
 uniform sampler2D u_texture;
 uniform bool u_lit;
-uniform vec3 u_eye;          // camera centre, world
 uniform vec4 u_light;        // xyz: position (w = 1) or direction towards the light (w = 0)
 uniform vec3 u_light_terms;  // ambient, diffuse, specular strength
 uniform float u_shininess;
@@ -68,7 +73,7 @@ void main() {
     vec3 n = normalize(v_normal);
     vec3 rgb = albedo;
     if (u_lit) {
-        vec3 V = normalize(u_eye - v_world);
+        vec3 V = normalize(v_eye - v_world);
         if (dot(n, V) < 0.0) n = -n;  // two-sided
         vec3 L = normalize(u_light.w > 0.5 ? u_light.xyz - v_world : u_light.xyz);
         vec3 H = normalize(L + V);
