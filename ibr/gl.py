@@ -44,12 +44,21 @@ def shared_context() -> moderngl.Context:
     return create_context()
 
 
+def shader_source(name: str, package: str = "ibr") -> str:
+    """Text of `<package>/shaders/<name>.glsl` (package data)."""
+    return (resources.files(package) / "shaders" / f"{name}.glsl").read_text()
+
+
+def _header(defines: dict | None) -> str:
+    return "#version 430 core\n" + "".join(f"#define {k} {v}\n" for k, v in (defines or {}).items())
+
+
 def load_program(ctx: moderngl.Context, name: str, defines: dict | None = None,
-                 varyings: tuple[str, ...] = ()) -> moderngl.Program:
-    """Compile `ibr/shaders/<name>.glsl`, whose stages are selected with
+                 varyings: tuple[str, ...] = (), package: str = "ibr") -> moderngl.Program:
+    """Compile `<package>/shaders/<name>.glsl`, whose stages are selected with
     `#if defined VERTEX_SHADER` / `FRAGMENT_SHADER` / `GEOMETRY_SHADER` (moderngl-window style)."""
-    source = (resources.files("ibr") / "shaders" / f"{name}.glsl").read_text()
-    head = "#version 430 core\n" + "".join(f"#define {k} {v}\n" for k, v in (defines or {}).items())
+    source = shader_source(name, package)
+    head = _header(defines)
 
     def stage(define):
         return head + f"#define {define} 1\n" + source if f"defined {define}" in source else None
@@ -60,3 +69,9 @@ def load_program(ctx: moderngl.Context, name: str, defines: dict | None = None,
         geometry_shader=stage("GEOMETRY_SHADER"),
         varyings=varyings,
     )
+
+
+def load_compute(ctx: moderngl.Context, name: str, defines: dict | None = None,
+                 package: str = "ibr") -> moderngl.ComputeShader:
+    """Compile the `#if defined COMPUTE_SHADER` stage of `<package>/shaders/<name>.glsl`."""
+    return ctx.compute_shader(_header(defines) + "#define COMPUTE_SHADER 1\n" + shader_source(name, package))

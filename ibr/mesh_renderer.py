@@ -164,28 +164,40 @@ class MeshRenderer:
             prog["u_shininess"] = light.shininess
 
     def atlas_layout(self, n: int, width: int, height: int) -> tuple[int, int]:
-        """(columns, rows) of the atlas that holds n views of width x height pixels."""
+        """(columns, rows) of the atlas that holds n views of width x height pixels. The
+        tile count is rounded up to a power of two so that a particle count that changes
+        every step (KLD-sampling) reuses a few cached framebuffers."""
         limit = self.ctx.info["GL_MAX_TEXTURE_SIZE"]
-        cols = max(1, min(n, limit // width))
-        rows = -(-n // cols)
+        n2 = 1 << max(0, int(n - 1).bit_length())
+        cols = max(1, min(n2, limit // width))
+        rows = -(-n2 // cols)
         if rows * height > limit:
             raise ValueError(f"{n} views of {width}x{height} exceed one {limit}px atlas")
         return cols, rows
 
     def draw_batch(self, cameras: list[Camera], light: Light | None = None) -> tuple[moderngl.Framebuffer, int]:
-        """Draw N same-sized views with one instanced call into the tiles of an atlas
-        framebuffer (view k at column k % cols, row k // cols) and leave them on the GPU.
-        Returns the framebuffer (attachments: colour, world, normal, camera-z depth, as in
-        `render`) and the number of columns."""
+        """Draw N same-sized cameras with one instanced call; see `draw_views`."""
         W, H = cameras[0].width, cameras[0].height
         if any((c.width, c.height) != (W, H) for c in cameras):
             raise ValueError("draw_batch needs cameras of one size")
-        cols, rows = self.atlas_layout(len(cameras), W, H)
+        clip = np.stack([c.gl_clip_from_world(self.near, self.far) for c in cameras])
+        return self.draw_views(clip, np.stack([c.center for c in cameras]), (W, H), light)
+
+    def draw_views(self, clip_from_world: np.ndarray, eyes: np.ndarray, size: tuple[int, int],
+                   light: Light | None = None) -> tuple[moderngl.Framebuffer, int]:
+        """Draw N views, given as world -> GL clip matrices (N, 4, 4) (see
+        `Camera.gl_clip_from_world`) and camera centres (N, 3), with one instanced call into
+        the tiles of an atlas framebuffer (view k at column k % cols, row k // cols) and
+        leave them on the GPU. Returns the framebuffer (attachments: colour, world,
+        normal, camera-z depth, as in `render`) and the number of columns."""
+        n = len(clip_from_world)
+        (W, H) = size
+        cols, rows = self.atlas_layout(n, W, H)
         fbo = self._fbo(cols * W, rows * H)
         self._begin(fbo, self.prog_batched)
-        k = np.arange(len(cameras))
-        inst = np.c_[np.stack([c.gl_clip_from_world(self.near, self.far).T.ravel() for c in cameras]),
-                     k % cols, k // cols, np.stack([c.center for c in cameras])].astype("f4")
+        k = np.arange(n)
+        inst = np.c_[np.transpose(clip_from_world, (0, 2, 1)).reshape(n, 16), k % cols, k // cols,
+                     eyes].astype("f4")
         ibuf = self.ctx.buffer(inst.tobytes())
         vao = self.ctx.vertex_array(self.prog_batched, [
             (self.vbo, "3f4 3f4 2f4 4f4 1f4", *self.ATTRS),
@@ -194,7 +206,7 @@ class MeshRenderer:
         self._set_light(self.prog_batched, light)
         for i in range(4):
             self.ctx.enable_direct(GL_CLIP_DISTANCE0 + i)
-        vao.render(moderngl.TRIANGLES, instances=len(cameras))
+        vao.render(moderngl.TRIANGLES, instances=n)
         for i in range(4):
             self.ctx.disable_direct(GL_CLIP_DISTANCE0 + i)
         vao.release()

@@ -6,14 +6,18 @@ from __future__ import annotations
 import argparse
 import sys
 
+from explore import scenic_cli, vueplan_cli
 from ibr import cli as ibr_cli
+from ibr import render_cli
 from ibr.errors import InputError
 from ibr.gl import GLContextError
+from localization import cli as localization_cli
 from ibrnav import bench
 from robot import cli as robot_cli
+from robot import cli_robot
 
 
-PACKAGE_CLIS = (ibr_cli, robot_cli, bench)
+PACKAGE_CLIS = (ibr_cli, render_cli, localization_cli, vueplan_cli, scenic_cli, robot_cli, cli_robot, bench)
 
 
 def build_parser() -> argparse.ArgumentParser:
