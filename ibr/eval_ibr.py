@@ -1,0 +1,135 @@
+"""Leave-one-out evaluation of the image-based renderers: for each photo of a scene, build
+the model (proxy geometry, source depth maps) from the *other* photos, render at the held-out
+photo's true camera with every method, and compare with the photo over the pixels the method
+covers (PSNR, SSIM) together with the covered fraction.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+from scipy.ndimage import gaussian_filter
+
+from ibr.depth_maps import render_depth_maps
+from ibr.errors import InputError
+from ibr.lightfield import LightFieldConfig, LightFieldRenderer
+from ibr.nearest_view import NearestViewRenderer
+from ibr.dense_points import DenseConfig
+from ibr.proxy_geometry import ProxyConfig, build_proxy
+from ibr.scene import Scene
+from ibr.ulr import UlrConfig, UlrRenderer
+
+METHODS = ("ulr", "nearest", "lightfield", "lightfield_local")
+
+
+class EvalError(InputError):
+    """Bad evaluation request (unknown method, too few views, no mesh for --proxy mesh)."""
+
+
+def psnr(image: np.ndarray, reference: np.ndarray, mask: np.ndarray) -> float:
+    """PSNR (dB) of uint8 images (H, W, 3) over the pixels of `mask` (H, W); nan if empty."""
+    if not mask.any():
+        return float("nan")
+    mse = np.mean((image[mask].astype(np.float64) - reference[mask]) ** 2)
+    return float("inf") if mse == 0 else float(10 * np.log10(255.0 ** 2 / mse))
+
+
+def ssim(image: np.ndarray, reference: np.ndarray, mask: np.ndarray, sigma: float = 1.5) -> float:
+    """Mean SSIM (Wang et al. 2004; Gaussian window sigma 1.5 px, K1 = 0.01, K2 = 0.03, on each
+    colour channel) over the pixels of `mask`; nan if empty."""
+    if not mask.any():
+        return float("nan")
+    c1, c2 = (0.01 * 255) ** 2, (0.03 * 255) ** 2
+    a, b = image.astype(np.float64), reference.astype(np.float64)
+    blur = lambda x: gaussian_filter(x, (sigma, sigma, 0))  # noqa: E731
+    mu_a, mu_b = blur(a), blur(b)
+    var_a, var_b = blur(a * a) - mu_a ** 2, blur(b * b) - mu_b ** 2
+    cov = blur(a * b) - mu_a * mu_b
+    s = ((2 * mu_a * mu_b + c1) * (2 * cov + c2)) / ((mu_a ** 2 + mu_b ** 2 + c1) * (var_a + var_b + c2))
+    return float(s.mean(axis=2)[mask].mean())
+
+
+@dataclass(frozen=True)
+class EvalConfig:
+    """Settings of `evaluate_scene`."""
+
+    methods: tuple[str, ...] = METHODS
+    """Renderers to compare (subset of METHODS)."""
+    proxy: str = "photos"
+    """"photos": proxy triangulated from the other photos; "dense": also with plane-sweep
+    points (`ibr.dense_points`); "mesh": the scene's own mesh."""
+    max_views: int = 0
+    """Evaluate only the first this many held-out views (0 = all)."""
+    k: int = 4
+    """Sources blended per pixel by ULR."""
+
+
+def make_renderers(sources: Scene, mesh, methods, k: int) -> dict:
+    """The requested renderers over one proxy mesh, sharing its source depth maps."""
+    depths = render_depth_maps(mesh, sources.cameras)
+    makers = {
+        "ulr": lambda: UlrRenderer(sources, mesh, config=UlrConfig(k=k), source_depths=depths),
+        "nearest": lambda: NearestViewRenderer(sources, mesh, source_depths=depths),
+        "lightfield": lambda: LightFieldRenderer(sources, mesh),
+        "lightfield_local": lambda: LightFieldRenderer(
+            sources, mesh, config=LightFieldConfig(mode="local_depth"), source_depths=depths),
+    }
+    return {m: makers[m]() for m in methods}
+
+
+def proxy_mesh(scene: Scene, kind: str):
+    """The scene's proxy: "mesh" its own mesh, "photos" triangulated from its photos, "dense"
+    with plane-sweep points too."""
+    if kind == "mesh":
+        if scene.mesh is None:
+            raise EvalError(f"scene {scene.name!r} has no mesh; use --proxy photos")
+        return scene.mesh
+    if kind not in ("photos", "dense"):
+        raise EvalError(f"unknown proxy {kind!r}; use photos, dense or mesh")
+    return build_proxy(scene, ProxyConfig(dense=DenseConfig() if kind == "dense" else None)).mesh
+
+
+def evaluate_scene(scene: Scene, cfg: EvalConfig = EvalConfig(),
+                   progress: Callable[[str], None] | None = None) -> dict:
+    """Leave-one-out PSNR / SSIM / coverage of each method; the JSON-ready result
+    {"scene", "proxy", "methods": {m: {"psnr_mean", "ssim_mean", "coverage_mean", "per_view"}}}."""
+    unknown = set(cfg.methods) - set(METHODS)
+    if unknown:
+        raise EvalError(f"unknown method(s) {sorted(unknown)}; choose from {list(METHODS)}")
+    if len(scene) < 3:
+        raise EvalError(f"scene {scene.name!r} has {len(scene)} views; leave-one-out needs at least 3")
+    if cfg.proxy == "mesh" and scene.mesh is None:
+        raise EvalError(f"scene {scene.name!r} has no mesh; use --proxy photos")
+    say = progress or (lambda s: None)
+    per = {m: [] for m in cfg.methods}
+    views = scene.views[: cfg.max_views] if cfg.max_views else scene.views
+    for n, held in enumerate(views):
+        sources = scene.without(held.name)
+        say(f"[{n + 1}/{len(views)}] {held.name}: proxy from {len(sources)} photos")
+        mesh = proxy_mesh(sources, cfg.proxy)
+        renderers = make_renderers(sources, mesh, cfg.methods, cfg.k)
+        for m, r in renderers.items():
+            image, covered = r.render(held.camera)
+            row = {"view": held.name, "psnr": psnr(image, held.image, covered),
+                   "ssim": ssim(image, held.image, covered), "coverage": float(covered.mean())}
+            per[m].append(row)
+            say(f"    {m:17s} PSNR {row['psnr']:6.2f} dB  SSIM {row['ssim']:.3f}  coverage {row['coverage']:.3f}")
+            r.release()
+    return {"scene": scene.name, "proxy": cfg.proxy, "methods": {m: summarise(rows) for m, rows in per.items()}}
+
+
+def summarise(rows: list[dict]) -> dict:
+    """Means over the views with a finite score (PSNR is nan where nothing was covered)."""
+    def mean(key):
+        v = np.array([r[key] for r in rows], dtype=np.float64)
+        v = v[np.isfinite(v)]
+        return float(v.mean()) if len(v) else float("nan")
+    return {"psnr_mean": mean("psnr"), "ssim_mean": mean("ssim"), "coverage_mean": mean("coverage"),
+            "per_view": rows}
+
+
+def stderr_progress(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)

@@ -1,0 +1,36 @@
+"""Normals from neighbouring points (PCA over a KD-tree neighbourhood), oriented towards the
+cameras that saw each point, and statistical outlier removal. Used to turn triangulated SIFT
+points into an oriented point set for Poisson meshing (Foster et al., section IV-B).
+
+Points are world-frame metres, (N, 3) float64.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+
+def remove_outliers(points: np.ndarray, k: int = 12, n_std: float = 2.0) -> np.ndarray:
+    """(N,) bool mask of points whose mean distance to their k nearest neighbours is within
+    `n_std` standard deviations of the cloud's mean (statistical outlier removal)."""
+    if len(points) <= k:
+        return np.ones(len(points), bool)
+    d, _ = cKDTree(points).query(points, k + 1)
+    mean_d = d[:, 1:].mean(axis=1)
+    return mean_d <= mean_d.mean() + n_std * mean_d.std()
+
+
+def estimate_normals(points: np.ndarray, viewpoints: np.ndarray, k: int = 16) -> np.ndarray:
+    """Unit normals (N, 3): the smallest principal axis of each point's k nearest neighbours,
+    flipped to face `viewpoints` (N, 3), a camera centre that observed the point."""
+    k = min(k, len(points))
+    _, idx = cKDTree(points).query(points, k)
+    nb = points[idx.reshape(len(points), -1)]               # (N, k, 3)
+    nb = nb - nb.mean(axis=1, keepdims=True)
+    cov = np.einsum("nki,nkj->nij", nb, nb)                  # (N, 3, 3)
+    _, vecs = np.linalg.eigh(cov)                           # ascending eigenvalues
+    n = vecs[:, :, 0]
+    flip = np.einsum("ij,ij->i", n, viewpoints - points) < 0
+    n[flip] *= -1
+    return n / np.linalg.norm(n, axis=1, keepdims=True)
