@@ -19,3 +19,18 @@ def log_estimate_error(estimate: np.ndarray, truth: np.ndarray) -> None:
     """plots/estimate_error_m and plots/estimate_error_deg."""
     rr.log("plots/estimate_error_m", rr.Scalars(float(np.hypot(*(estimate[:2] - truth[:2])))))
     rr.log("plots/estimate_error_deg", rr.Scalars(float(np.degrees(abs(wrap_angle(estimate[2] - truth[2]))))))
+
+
+def log_particles(particles: np.ndarray, weights: np.ndarray, path: str = "world/particles",
+                  height_m: float = 0.03) -> None:
+    """SE(2) particles (N, 3) as points coloured by weight (dark blue low, yellow high)."""
+    w = (weights / max(weights.max(), 1e-300))[:, None]
+    colors = ((1 - w) * [40, 40, 150] + w * [250, 230, 40]).astype(np.uint8)
+    rr.log(path, rr.Points3D(np.c_[particles[:, :2], np.full(len(particles), height_m)],
+                             colors=colors, radii=0.02))
+
+
+def log_observed_vs_rendered(observed: np.ndarray, rendered: np.ndarray) -> None:
+    """The camera image and the model's view at the estimate, side by side."""
+    rr.log("localization/observed", rr.Image(observed))
+    rr.log("localization/rendered_at_estimate", rr.Image(rendered))

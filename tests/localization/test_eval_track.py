@@ -1,0 +1,21 @@
+import numpy as np
+
+from localization.eval_track import TrackConfig, run_tracking, steps_to_localise
+
+
+def test_steps_to_localise_needs_a_held_fix():
+    cfg = TrackConfig(recovered_m=0.25, recovered_rad=1.0, hold_steps=3)
+    err = np.array([[1, 0], [0.1, 0], [0.5, 0], [0.1, 0], [0.1, 0], [0.1, 0], [2, 0]], float)
+    assert steps_to_localise(err, 0, cfg) == 3
+    assert steps_to_localise(err, 4, cfg) is None
+
+
+def test_global_localisation_and_kidnap_recovery_in_the_office(office, gl_ctx):
+    """From a uniform prior over the whole floor the filter finds the robot; teleported
+    mid-run, it finds it again (augmented MCL's random injection)."""
+    res = run_tracking(office, seed=3, config=TrackConfig(steps=34, kidnap_step=12, n_particles=1500),
+                       ctx=gl_ctx)
+    assert res["steps_to_converge"] is not None and res["steps_to_converge"] < 12
+    assert res["median_tracking_error_m"] < 0.2
+    assert res["error_m"][12] > 1.0  # the kidnapping really lost it
+    assert res["steps_to_recover"] is not None

@@ -1,0 +1,77 @@
+import numpy as np
+import pytest
+import shapely
+from filterpy.monte_carlo import systematic_resample
+
+from localization.particle_filter import (ParticleFilter, ParticleFilterConfig, _numpy_random_from,
+                                          kld_sample_count, sample_free_poses, weighted_estimate)
+
+FREE = shapely.box(0, 0, 4, 2).difference(shapely.box(1, 0.5, 2, 1.5))
+
+
+def test_kld_count_matches_fox():
+    # k = 10 bins, epsilon 0.05, z_0.99 = 2.326: 9 / 0.1 * (1 - 2/81 + sqrt(2/81) z)^3 = 216.9
+    assert kld_sample_count(10, 0.05, 0.99) == 217
+    assert kld_sample_count(1, 0.05, 0.99) == 1
+
+
+def test_uniform_poses_stay_in_free_space():
+    p = sample_free_poses(FREE, 5000, np.random.default_rng(0))
+    assert shapely.contains_xy(FREE, p[:, 0], p[:, 1]).all()
+    assert abs(p[:, 2].mean()) < 0.1 and p[:, 2].min() >= -np.pi
+    # uniform: the share in the left column matches its share of the area
+    left = (p[:, 0] < 1).mean()
+    assert left == pytest.approx(2 / FREE.area, abs=0.02)
+
+
+def test_estimate_uses_circular_mean():
+    particles = np.array([[0, 0, np.pi - 0.1], [2, 0, -np.pi + 0.1]])
+    mean, cov, best = weighted_estimate(particles, np.log([0.5, 0.5]))
+    assert mean[0] == pytest.approx(1)
+    assert abs(abs(mean[2]) - np.pi) < 1e-9
+    assert cov[2, 2] == pytest.approx(0.01)
+
+
+def test_filterpy_resampling_is_reproducible_from_the_generator():
+    w = np.random.default_rng(0).random(100)
+    w /= w.sum()
+    state = np.random.get_state()[1].copy()
+    with _numpy_random_from(np.random.default_rng(5)):
+        a = systematic_resample(w)
+    with _numpy_random_from(np.random.default_rng(5)):
+        b = systematic_resample(w)
+    np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(np.random.get_state()[1], state)  # global state untouched
+
+
+def test_filter_concentrates_on_a_synthetic_likelihood():
+    """A likelihood peaked at a known pose pulls a uniform filter there, and KLD shrinks it."""
+    truth = np.array([3.0, 1.0, 0.5])
+    config = ParticleFilterConfig(n_particles=2000, roughening=(0.01, 0.01, 0.01))
+    pf = ParticleFilter(FREE, config, np.random.default_rng(0))
+    pf.init_uniform()
+    for _ in range(8):
+        d = pf.particles - truth
+        d[:, 2] = (d[:, 2] + np.pi) % (2 * np.pi) - np.pi
+        pf.update(-0.5 * np.sum((d / [0.2, 0.2, 0.2]) ** 2, axis=1))
+        pf.resample_if_needed()
+    mean, cov, _ = pf.estimate()
+    assert np.hypot(*(mean[:2] - truth[:2])) < 0.1  # posterior sd ~ 0.2 / sqrt(8)
+    assert len(pf.particles) < 1000
+
+
+def test_kidnapping_injects_random_particles():
+    config = ParticleFilterConfig(n_particles=500)
+    pf = ParticleFilter(FREE, config, np.random.default_rng(1))
+    pf.init_gaussian([3.0, 1.0, 0.0], [0.05, 0.05, 0.05])
+    for _ in range(5):  # good fit: likelihood averages settle
+        pf.update(np.zeros(len(pf.particles)))
+        pf.log_w += np.random.default_rng(0).normal(0, 1, len(pf.log_w))  # force resampling
+        pf.resample_if_needed()
+    injected_before = pf.n_injected
+    pf.update(np.full(len(pf.particles), -30.0))  # the world stopped matching
+    pf.log_w += np.random.default_rng(1).normal(0, 1, len(pf.log_w))
+    assert pf.resample_if_needed()
+    # w_fast falls by alpha_fast, w_slow by alpha_slow: p = 1 - (1 - 0.3) / (1 - 0.02)
+    assert injected_before == 0
+    assert pf.n_injected / len(pf.particles) == pytest.approx(1 - 0.7 / 0.98, abs=0.1)

@@ -1,0 +1,64 @@
+import numpy as np
+import pytest
+
+from ibr.camera import intrinsics_from_fov
+from localization.pose_views import se2_views
+from localization.render_likelihood import (BatchedLikelihood, LikelihoodConfig, luminance,
+                                            reference_tile_scores, scores_to_loglik)
+from robot.protocol import forward_camera_mount, robot_camera
+
+TRUE = np.array([-1.5, -2.5, 0.3])
+
+
+@pytest.fixture(scope="module")
+def setup(office):
+    K = intrinsics_from_fov(60, 320, 240)
+    mount = forward_camera_mount(0.4)
+    observed = office.photograph(robot_camera(TRUE, K, (320, 240), mount))
+    rng = np.random.default_rng(0)
+    poses = np.c_[rng.uniform(-2.5, 2.5, 60), rng.uniform(-3.5, 3.5, 60), rng.uniform(-3, 3, 60)]
+    poses[0] = TRUE
+    cams = [robot_camera(p, K, (320, 240), mount).scaled(0.2) for p in poses]
+    return office, observed, poses, cams, mount
+
+
+def test_batched_scores_equal_per_particle_reference(setup, gl_ctx):
+    office, observed, poses, cams, _ = setup
+    lik = BatchedLikelihood(office.renderer(gl_ctx), light=office.light)
+    lik.set_observation(observed, (64, 48))
+    batched = lik.tile_scores(cams)
+    ref = reference_tile_scores(office.renderer(gl_ctx), cams, luminance(observed, (64, 48)), office.light)
+    np.testing.assert_allclose(batched, ref, atol=2e-3)
+
+
+def test_array_path_equals_camera_path(setup, gl_ctx):
+    office, observed, poses, cams, mount = setup
+    lik = BatchedLikelihood(office.renderer(gl_ctx), light=office.light)
+    lik.set_observation(observed, (64, 48))
+    clip, eyes = se2_views(poses, cams[0], mount)
+    np.testing.assert_allclose(lik.view_scores(clip, eyes), lik.tile_scores(cams), atol=1e-6)
+
+
+@pytest.mark.parametrize("score", ["ncc", "ssd"])
+def test_likelihood_peaks_at_the_true_pose(setup, gl_ctx, score):
+    office, observed, poses, cams, _ = setup
+    config = LikelihoodConfig(score=score, temperature=0.05 if score == "ncc" else 0.1)
+    lik = BatchedLikelihood(office.renderer(gl_ctx), config, light=office.light)
+    lik.set_observation(observed)
+    loglik = scores_to_loglik(lik.tile_scores(cams), config)
+    assert np.argmax(loglik) == 0
+    # and it falls off with distance from the truth
+    near = [robot_camera(TRUE + d, cams[0].K, (64, 48), setup[4]) for d in
+            ([0.05, 0, 0], [0.3, 0, 0], [1.0, 0, 0])]
+    ll = scores_to_loglik(lik.tile_scores(near), config)
+    assert ll[0] > ll[1] > ll[2]
+
+
+def test_ncc_ignores_exposure(setup, gl_ctx):
+    office, observed, poses, cams, _ = setup
+    lik = BatchedLikelihood(office.renderer(gl_ctx), light=office.light)
+    lik.set_observation(observed)
+    a = lik.tile_scores(cams[:5])[:, 0]
+    lik.set_observation((observed * 0.6).astype(np.uint8))
+    b = lik.tile_scores(cams[:5])[:, 0]
+    np.testing.assert_allclose(a, b, atol=0.02)
