@@ -1,0 +1,37 @@
+"""`ibrnav scenic` end to end on a tiny run: JSON of per-frame metrics and a recording."""
+
+import json
+
+import pytest
+
+from explore.scenic_cli import ScenicInputError, main, parse_scene
+from ibr.errors import InputError
+
+TINY = ["--frames", "2", "--width", "160", "--height", "120", "--particles", "40",
+        "--nodes", "40", "--gt-samples", "2000"]
+
+
+@pytest.mark.parametrize("agents,planner", [(2, "scenic"), (1, "rrtstar")])
+def test_tiny_run_writes_metrics(tmp_path, agents, planner):
+    out, rrd = tmp_path / "scenic.json", tmp_path / "scenic.rrd"
+    assert main(["synthetic:office", "--agents", str(agents), "--planner", planner, "--seed", "1",
+                 "--json", str(out), "--save", str(rrd), *TINY]) == 0
+    result = json.loads(out.read_text())
+    frames = result["per_frame"]
+    assert [f["frame"] for f in frames] == [0, 1, 2]
+    for f in frames:
+        assert 0.0 <= f["coverage"] <= 1.0 and 0.0 <= f["outlier_ratio"] <= 1.0
+        assert 0.0 <= f["mean_error_m"] <= 0.05  # inliers are within d_i = 5 cm
+    assert frames[0]["coverage"] > 0  # the initial pair reconstructed something
+    assert result["final"] == {k: frames[-1][k] for k in ("coverage", "outlier_ratio", "mean_error_m")}
+    assert rrd.stat().st_size > 10_000
+
+
+def test_bad_arguments_are_input_errors():
+    with pytest.raises(ScenicInputError, match="synthetic:NAME"):
+        parse_scene("strecha:/nowhere")
+    assert issubclass(ScenicInputError, InputError)
+    with pytest.raises(ScenicInputError, match="--agents"):
+        main(["synthetic:office", "--agents", "3", *TINY])
+    with pytest.raises(ScenicInputError, match="--gamma"):
+        main(["synthetic:office", "--gamma", "1.5", *TINY])

@@ -1,0 +1,56 @@
+"""`ibrnav vueplan` end to end on a coarse courtyard (small flags)."""
+
+import argparse
+import json
+
+import pytest
+
+from explore import vueplan_cli
+from ibr.errors import InputError
+
+
+def _parse(argv):
+    parser = argparse.ArgumentParser()
+    vueplan_cli.register(parser.add_subparsers(dest="command"))
+    return parser.parse_args(argv)
+
+
+def test_vueplan_cli_writes_json_and_table(tmp_path, capsys, gl_ctx):
+    out = tmp_path / "vp.json"
+    args = _parse(["vueplan", "synthetic:courtyard", "--candidates", "200", "--voxel", "1.0",
+                   "--scan-resolution", "2", "--threshold", "5", "--max-nbv", "2",
+                   "--surface-samples", "2000", "--json", str(out), "--save", str(tmp_path / "vp.rrd")])
+    assert args.func(args) == 0
+    res = json.loads(out.read_text())
+    assert res["phase1"]["views"] >= 2 and res["phase1"]["boundary_coverage"] >= 0.95
+    assert res["tour_length_m"] > 0
+    rows = res["phase2"]
+    assert 1 <= len(rows) <= 3
+    keys = {"seen_occupied", "unseen", "boundary_unseen", "visible_to_nbv", "surface_coverage", "seconds"}
+    assert all(keys <= set(r) for r in rows)
+    assert "Boundary unseen" in capsys.readouterr().out
+    assert (tmp_path / "vp.rrd").stat().st_size > 0
+
+
+def test_vueplan_cli_phase1_only_with_floorplan(tmp_path, gl_ctx):
+    from ibr.synthetic import make_world
+    world = make_world("courtyard")
+    mesh_path, plan_path = tmp_path / "site.ply", tmp_path / "site.wkt"
+    world.mesh.export(mesh_path)
+    plan_path.write_text(world.free_space.wkt)
+    out = tmp_path / "p1.json"
+    args = _parse(["vueplan", str(mesh_path), "--floorplan", str(plan_path), "--phase1-only",
+                   "--candidates", "200", "--json", str(out), "--save", str(tmp_path / "p1.rrd")])
+    assert args.func(args) == 0
+    res = json.loads(out.read_text())
+    assert "phase2" not in res and res["phase1"]["boundary_coverage"] >= 0.95
+
+
+def test_vueplan_cli_bad_site(tmp_path):
+    for site in ("synthetic:nowhere", str(tmp_path / "missing.obj")):
+        args = _parse(["vueplan", site, "--save", str(tmp_path / "x.rrd")])
+        with pytest.raises(InputError, match="nowhere|missing"):
+            args.func(args)
+    args = _parse(["vueplan", "synthetic:courtyard", "--voxel", "0", "--save", str(tmp_path / "x.rrd")])
+    with pytest.raises(InputError, match="--voxel"):
+        args.func(args)

@@ -1,0 +1,108 @@
+"""Phase II (Blaer & Allen Algorithm 2): voxel carving and visibility counts on tiny grids
+with known answers, and the NBV loop on the synthetic courtyard."""
+
+import numpy as np
+import pytest
+
+from explore.floorplan import FloorPlan
+from explore.voxel_grid import (EMPTY, OCCUPIED, UNSEEN, VoxelGrid, boundary_unseen, insert_scan,
+                                ray_voxels, segments_clear, blocker_distance)
+from explore.vueplan_phase1 import Phase1Config, plan_phase1
+from explore.vueplan_phase2 import (Phase2Config, SurfaceCoverage, count_visible, count_visible_per_ray,
+                                    ground_candidates, plan_phase2)
+from ibr.scan_simulator import ScanConfig, simulate_scan
+from ibr.synthetic import make_world
+
+
+def test_ray_voxels_walks_every_crossed_voxel():
+    _, idx = ray_voxels((5, 5, 1), np.array([[0.5, 0.5, 0.5]]), np.array([[4.5, 2.5, 0.5]]))
+    assert idx.tolist() == [[0, 0, 0], [1, 0, 0], [1, 1, 0], [2, 1, 0], [3, 1, 0], [3, 2, 0], [4, 2, 0]]
+
+
+def test_carving_marks_points_and_passes_through_occupied():
+    grid = VoxelGrid.covering([0, 0, 0], [10, 3, 3], 1.0)
+    scanner = np.array([0.5, 1.5, 1.5])
+    insert_scan(grid, scanner, np.array([[4.5, 1.5, 1.5]]))
+    line = grid.state[:, 1, 1]
+    assert line.tolist() == [EMPTY] * 4 + [OCCUPIED] + [UNSEEN] * 5
+    insert_scan(grid, scanner, np.array([[7.5, 1.5, 1.5]]))
+    assert grid.state[:, 1, 1].tolist() == [EMPTY] * 4 + [OCCUPIED] + [EMPTY] * 2 + [OCCUPIED] + [UNSEEN] * 2
+    # a point in an empty voxel turns it occupied; nothing off the line changed
+    insert_scan(grid, scanner, np.array([[2.5, 1.5, 1.5]]))
+    assert grid.state[2, 1, 1] == OCCUPIED
+    assert (grid.state[:, [0, 2], :] == UNSEEN).all() and (grid.state[:, :, [0, 2]] == UNSEEN).all()
+    # no-return beams carve out to the maximum range
+    insert_scan(grid, scanner, np.empty((0, 3)), np.array([[0.0, 0.0, 1.0]]), max_range_m=1.0)
+    assert grid.state[0, 1, 2] == EMPTY
+
+
+def _wall_grid():
+    """6 x 5 x 1 grid of 1 m voxels, all seen-empty, except an unseen column at x = 5 and one
+    occupied voxel at (3, 2)."""
+    grid = VoxelGrid.covering([0, 0, 0], [6, 5, 1], 1.0)
+    grid.state[:] = EMPTY
+    grid.state[5] = UNSEEN
+    grid.state[3, 2, 0] = OCCUPIED
+    return grid
+
+
+def test_boundary_unseen_and_exposed_faces():
+    idx, faces = boundary_unseen(_wall_grid())
+    assert idx.tolist() == [[5, j, 0] for j in range(5)]
+    assert faces.tolist() == [[True, False, False, False, False, False]] * 5  # the -x face
+
+
+@pytest.mark.parametrize("grazing_deg,max_range,expected", [(70, 60, 3), (20, 60, 2), (70, 5.1, 1)])
+def test_visibility_count_known_answer(grazing_deg, max_range, expected):
+    # from (0.5, 2.7): the rays to the unseen voxels (5, 1) and (5, 2) cross the occupied
+    # voxel (3, 2); (5, 0), (5, 3), (5, 4) are clear, at 23.7, 9.1 and 19.8 deg from the
+    # face normal and 5.46, 5.06 and 5.31 m away
+    grid = _wall_grid()
+    cfg = Phase2Config(max_grazing_rad=np.radians(grazing_deg), max_range_m=max_range, min_range_m=0.0)
+    views = np.array([[0.5, 2.7, 0.5], [5.5, 2.5, 0.5]])  # the second stands in unseen space
+    counts = count_visible(grid, views, cfg)
+    assert counts.tolist() == [expected, 0]
+    assert count_visible_per_ray(grid, views, cfg).tolist() == [expected, 0]
+
+
+def test_vectorised_walk_matches_scalar_reference():
+    rng = np.random.default_rng(3)
+    grid = VoxelGrid.covering([0, 0, 0], [20, 20, 8], 1.0)
+    grid.state[:] = rng.choice([UNSEEN, EMPTY, OCCUPIED], grid.shape, p=[0.05, 0.9, 0.05])
+    views = np.c_[rng.uniform(0, 20, (12, 2)), np.full(12, 1.37)]  # off the voxel lattice: no ties
+    cfg = Phase2Config(max_range_m=15.0, min_range_m=1.0)
+    np.testing.assert_array_equal(count_visible(grid, views, cfg), count_visible_per_ray(grid, views, cfg))
+    blocked = grid.state != EMPTY
+    a, b = rng.uniform(0, [20, 20, 8], (3000, 3)), rng.uniform(0, [20, 20, 8], (3000, 3))
+    np.testing.assert_array_equal(segments_clear(blocked, a, b), segments_clear(blocked, a, b,
+                                                                                blocker_distance(blocked)))
+
+
+def test_phase2_raises_coverage_each_iteration_and_stops_by_threshold(gl_ctx):
+    world = make_world("courtyard")
+    rng = np.random.default_rng(0)
+    p1 = plan_phase1(FloorPlan(world.free_space), Phase1Config(n_candidates=300), rng)
+    scfg = ScanConfig(resolution_deg=2.0, max_range_m=60.0)
+    grid = VoxelGrid.covering([-20, -20, 0], [20, 20, 13], 1.0)
+    cov = SurfaceCoverage(world.mesh, 4000, rng, tol_m=0.5)
+    renderer = world.renderer(gl_ctx)
+    # start from the first Phase I scan only, so Phase II has occlusions to resolve
+    scan = simulate_scan(renderer, np.r_[p1.views[0], 1.6], scfg)
+    insert_scan(grid, scan.origin, scan.points, scan.no_return, scan.max_range_m)
+    cov.add(scan.points)
+
+    def acquire(view):
+        s = simulate_scan(renderer, view, scfg)
+        cov.add(s.points)
+        return s
+
+    cfg = Phase2Config(threshold=40, max_views=8, candidate_stride=2)
+    rows = plan_phase2(grid, ground_candidates(grid, world.free_space, cfg), acquire, cfg,
+                       lambda: cov.fraction)
+    assert len(rows) >= 3
+    covs = [r.surface_coverage for r in rows]
+    assert all(b > a for a, b in zip(covs, covs[1:])), covs
+    assert rows[-1].visible_to_nbv < cfg.threshold      # stopped by the threshold
+    assert all(r.visible_to_nbv >= cfg.threshold for r in rows[:-1])
+    occ = [r.seen_occupied for r in rows]
+    assert occ == sorted(occ)
