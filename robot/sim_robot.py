@@ -170,5 +170,13 @@ class SimRobot:
         self._n_photos += 1
         return photo
 
+    def kidnap(self, pose: np.ndarray) -> None:
+        """Teleport the robot to `pose` without telling its sensors (evaluation of
+        relocalisation). The odometry does not see it; that is the point."""
+        if not shapely.contains_xy(self.free, pose[0], pose[1]):
+            raise InputError(f"kidnap pose {pose} is not in the free space")
+        self.true_pose = np.asarray(pose, dtype=np.float64).copy()
+        self._contact = (False, False)
+
     def stop(self) -> None:
         """Motors off. A simulated robot moves only inside drive/turn, so nothing runs on."""
