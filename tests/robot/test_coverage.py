@@ -1,0 +1,56 @@
+"""Surface coverage against known answers: a wall, cameras in front of it, an occluder."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from ibr.camera import Camera, intrinsics_from_fov
+from robot.coverage import CoverageConfig, CoverageTracker, coverage_curve, path_length
+
+K = intrinsics_from_fov(90.0, 64, 64)
+
+
+def wall() -> trimesh.Trimesh:
+    """A 2 x 2 m wall in the plane y = 2 facing -y (towards the cameras at y = 0)."""
+    v = np.array([[-1, 2, -1], [1, 2, -1], [1, 2, 1], [-1, 2, 1.0]])
+    return trimesh.Trimesh(v, [[0, 1, 2], [0, 2, 3]], process=False)
+
+
+def cam_at(x: float) -> Camera:
+    return Camera.look_at([x, 0, 0], [x, 2, 0], K, 64, 64)
+
+
+def test_one_photo_covers_nothing_and_two_apart_cover_the_shared_view():
+    cfg = CoverageConfig(n_samples=2000, min_angle_deg=5.0, max_range_m=10)
+    curve = coverage_curve(wall(), [cam_at(0.0), cam_at(0.5)], cfg)
+    assert curve[0] == 0.0
+    # both 90-degree cameras at 2 m see x in [x_c - 2, x_c + 2]: the whole 2 m wall; every
+    # sample is >= 2 * atan(0.25 / 2.3) ~ 12 degrees apart (> 5) from the two centres
+    assert curve[1] == pytest.approx(1.0)
+
+
+def test_close_cameras_do_not_make_a_pair():
+    cfg = CoverageConfig(n_samples=2000, min_angle_deg=5.0, max_range_m=10)
+    # 5 cm apart at 2 m: at most ~1.4 degrees between the sightings
+    assert coverage_curve(wall(), [cam_at(0.0), cam_at(0.05)], cfg)[-1] == 0.0
+
+
+def test_range_and_occlusion_hide_samples():
+    far = CoverageConfig(n_samples=2000, max_range_m=1.5)
+    assert coverage_curve(wall(), [cam_at(0.0), cam_at(0.5)], far)[-1] == 0.0
+    # a blocker at y = 1 covering x < 0 for both cameras hides part of the wall
+    b = trimesh.creation.box(extents=[4, 0.1, 4], transform=trimesh.transformations.translation_matrix([-2, 1, 0]))
+    scene = trimesh.util.concatenate([wall(), b])
+    tracker = CoverageTracker(scene, CoverageConfig(n_samples=4000, max_range_m=10))
+    tracker.add(cam_at(0.2))
+    tracker.add(cam_at(0.7))
+    on_wall = np.isclose(tracker.samples.points[:, 1], 2.0)
+    x = tracker.samples.points[:, 0]
+    # the camera at x = 0.2 sees past the blocker's edge (x = 0, y = 1) only wall points
+    # with x > -0.2; the one at 0.7 those with x > -0.7: covered needs both
+    assert (tracker.covered & on_wall & (x > -0.15)).sum() > 0.9 * (on_wall & (x > -0.15)).sum()
+    assert not (tracker.covered & on_wall & (x < -0.25)).any()
+
+
+def test_path_length():
+    assert path_length(np.array([[0, 0, 0], [3, 4, 1], [3, 0, 0.0]])) == pytest.approx(9.0)
