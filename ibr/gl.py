@@ -26,8 +26,10 @@ class GLContextError(RuntimeError):
     """No OpenGL context could be created; the message says how to fix it."""
 
 
-def create_context(require: int = 330) -> moderngl.Context:
-    """A new standalone moderngl context (EGL by default, IBRNAV_GL_BACKEND to override)."""
+def create_context(require: int = 430) -> moderngl.Context:
+    """A new standalone moderngl context (EGL by default, IBRNAV_GL_BACKEND to override).
+    `require` 430: the shaders are GLSL 4.30 and the reductions are compute shaders (a
+    driver asked for less may hand out a 3.3 core context without them, as NVIDIA's does)."""
     import os
 
     backend = os.environ.get("IBRNAV_GL_BACKEND", "egl")
