@@ -1,0 +1,188 @@
+"""Feature-based camera localisation: SIFT matched to a map of 3-D points, RANSAC PnP.
+
+Foster, Wang & Grupen (section IV-B, path following): SIFT features of the robot's image are
+matched against the SfM points' descriptors through a precomputed KD-tree, the camera is
+found by RANSAC (DLT) and then refined (f, R, T), about 2 in / 1 degree accurate.
+
+Here the map comes from posed photos (`ibr.scene.Scene`): SIFT per image, matched between
+neighbouring views, kept when consistent with the epipolar geometry of the *known* poses and
+triangulated (`ibr.triangulation`). Every triangulated point keeps the descriptors of both
+features it came from, and all descriptors go into one FLANN KD-tree index built once.
+A query's descriptors are matched with a ratio test whose second neighbour must belong to a
+*different* 3-D point (more than `FeatureLocalizerConfig.same_point_m` away), then pycolmap's
+`estimate_and_refine_absolute_pose` (LO-RANSAC P3P + non-linear refinement) gives the pose.
+
+Frames: world points in metres; pixels (u, v) with centres at integer coordinates, as
+`ibr.camera.Camera` (COLMAP's half-pixel offset cancels: the principal point and the
+keypoints are given to pycolmap in the same convention).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+import pycolmap
+from scipy.spatial.transform import Rotation
+
+from ibr.camera import Camera, rigid
+from ibr.scene import Scene
+from ibr.triangulation import (Features, TriangulationConfig, fundamental_matrix, match_features,
+                               neighbour_pairs, sampson_distance, sift_features, triangulate_pair)
+
+
+@dataclass(frozen=True)
+class FeatureLocalizerConfig:
+    """Settings of `FeatureMap` (map building and `localize`)."""
+
+    triangulation: TriangulationConfig = field(default_factory=TriangulationConfig)
+    """SIFT count, matching and triangulation checks used to build the map (known poses)."""
+    query_features: int = 8000
+    """SIFT keypoints extracted from a query image."""
+    ratio: float = 0.8
+    """Lowe's ratio between the nearest and the nearest *other-point* descriptor distance."""
+    same_point_m: float = 0.02
+    """Neighbours whose 3-D points lie closer than this (metres) count as the same point in
+    the ratio test (the map holds each point's descriptors from two or more views)."""
+    kdtree_trees: int = 4
+    """Randomised KD-trees in the FLANN index."""
+    kdtree_checks: int = 64
+    """Leaves FLANN visits per query descriptor (more: slower, closer to exact)."""
+    ransac_max_error_px: float = 4.0
+    """RANSAC inlier threshold on the reprojection error (pixels of the query image)."""
+    min_inliers: int = 15
+    """Fewer RANSAC inliers than this: no pose (`localize` returns None)."""
+
+
+@dataclass
+class PnPResult:
+    """A localised query. cam_from_world (4, 4) rigid, world metres -> camera axes;
+    n_matches: descriptor matches given to RANSAC; n_inliers: RANSAC inliers; camera: the
+    query's `Camera` at that pose (with the refined focal length if it was refined)."""
+
+    cam_from_world: np.ndarray
+    n_matches: int
+    n_inliers: int
+    camera: Camera
+
+
+def pycolmap_camera(camera: Camera) -> pycolmap.Camera:
+    """The pinhole intrinsics of `camera` as a pycolmap PINHOLE camera (skew dropped)."""
+    K = camera.K
+    return pycolmap.Camera(model="PINHOLE", width=camera.width, height=camera.height,
+                           params=[K[0, 0], K[1, 1], K[0, 2], K[1, 2]])
+
+
+def triangulated_tracks(cameras: list[Camera], feats: list[Features], cfg: TriangulationConfig
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Triangulate epipolar-consistent matches of neighbouring views (known poses).
+
+    Returns points (P, 3) world metres, descriptors (2P, 128) float32 and owner (2P,) the
+    point index of each descriptor (both features of every match are kept)."""
+    pts, descs, owners = [], [], []
+    n = 0
+    for i, j in neighbour_pairs(cameras, cfg.neighbours):
+        m = match_features(feats[i], feats[j], cfg.ratio)
+        xa, xb = feats[i].uv[m[:, 0]], feats[j].uv[m[:, 1]]
+        good = np.flatnonzero(sampson_distance(fundamental_matrix(cameras[i], cameras[j]), xa, xb)
+                              < cfg.max_epipolar_px)
+        P, idx = triangulate_pair(cameras[i], cameras[j], xa[good], xb[good], cfg)
+        mi = m[good[idx]]
+        pts.append(P)
+        descs += [feats[i].descriptors[mi[:, 0]], feats[j].descriptors[mi[:, 1]]]
+        owners += [np.arange(n, n + len(P))] * 2
+        n += len(P)
+    if n == 0:
+        return np.zeros((0, 3)), np.zeros((0, 128), np.float32), np.zeros(0, int)
+    return np.concatenate(pts), np.concatenate(descs).astype(np.float32), np.concatenate(owners)
+
+
+class FeatureMap:
+    """3-D points with SIFT descriptors and a prebuilt KD-tree index over the descriptors.
+
+    points: (P, 3) world metres; descriptors: (D, 128) float32; owner: (D,) point of each
+    descriptor. Build with `from_scene`; query with `localize`."""
+
+    def __init__(self, points: np.ndarray, descriptors: np.ndarray, owner: np.ndarray,
+                 config: FeatureLocalizerConfig = FeatureLocalizerConfig()):
+        self.points, self.descriptors, self.owner, self.config = points, descriptors, owner, config
+        index = dict(algorithm=1, trees=config.kdtree_trees)  # FLANN_INDEX_KDTREE
+        self.matcher = cv2.FlannBasedMatcher(index, dict(checks=config.kdtree_checks))
+        if len(descriptors):
+            self.matcher.add([np.ascontiguousarray(descriptors, np.float32)])
+            self.matcher.train()
+
+    @classmethod
+    def from_scene(cls, scene: Scene, config: FeatureLocalizerConfig = FeatureLocalizerConfig(),
+                   exclude: tuple[str, ...] | list[str] = ()) -> "FeatureMap":
+        """Map of `scene`'s posed photos, leaving out the views named in `exclude`."""
+        views = [v for v in scene.views if v.name not in set(exclude)]
+        feats = [sift_features(v.image, config.triangulation.n_features) for v in views]
+        return cls.from_features([v.camera for v in views], feats, config)
+
+    @classmethod
+    def from_features(cls, cameras: list[Camera], feats: list[Features],
+                      config: FeatureLocalizerConfig = FeatureLocalizerConfig()) -> "FeatureMap":
+        """Map from posed cameras and their already extracted SIFT features (leave-one-out
+        evaluation extracts each photo's features once)."""
+        return cls(*triangulated_tracks(cameras, feats, config.triangulation), config)
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    def match(self, descriptors: np.ndarray, k: int = 6) -> np.ndarray:
+        """(M, 2) pairs (query descriptor index, map point index) passing the ratio test
+        against the nearest neighbour that belongs to another 3-D point."""
+        if len(descriptors) == 0 or len(self.descriptors) < 2:
+            return np.zeros((0, 2), int)
+        knn = self.matcher.knnMatch(np.ascontiguousarray(descriptors, np.float32), k=k)
+        out = []
+        for nbrs in knn:
+            if not nbrs:
+                continue
+            best = self.owner[nbrs[0].trainIdx]
+            second = next((m.distance for m in nbrs[1:] if np.linalg.norm(
+                self.points[self.owner[m.trainIdx]] - self.points[best]) > self.config.same_point_m), None)
+            if second is None or nbrs[0].distance < self.config.ratio * second:
+                out.append((nbrs[0].queryIdx, best))
+        return np.array(out, dtype=int).reshape(-1, 2)
+
+    def localize(self, image: np.ndarray, camera: Camera, refine_focal: bool = False) -> PnPResult | None:
+        """Pose of the camera that took `image` ((H, W, 3) uint8 RGB), with the intrinsics and
+        size of `camera` (its pose is ignored). None when fewer than `min_inliers` inliers."""
+        feats = sift_features(image, self.config.query_features)
+        return self.localize_features(feats, camera, refine_focal)
+
+    def localize_features(self, feats: Features, camera: Camera, refine_focal: bool = False
+                          ) -> PnPResult | None:
+        """`localize` from already extracted query features."""
+        m = self.match(feats.descriptors)
+        if len(m) < max(4, self.config.min_inliers):
+            return None
+        cfg = self.config
+        est = pycolmap.AbsolutePoseEstimationOptions()
+        est.ransac.max_error = cfg.ransac_max_error_px
+        est.ransac.random_seed = 0
+        ref = pycolmap.AbsolutePoseRefinementOptions()
+        ref.refine_focal_length = refine_focal
+        cam = pycolmap_camera(camera)
+        res = pycolmap.estimate_and_refine_absolute_pose(
+            feats.uv[m[:, 0]].astype(np.float64), self.points[m[:, 1]].astype(np.float64), cam, est, ref)
+        if res is None or res["num_inliers"] < cfg.min_inliers:
+            return None
+        T = rigid(np.eye(3), np.zeros(3))
+        T[:3, :] = res["cam_from_world"].matrix()
+        K = camera.K.copy()
+        if refine_focal:
+            fx, fy = cam.params[0], cam.params[1]
+            K[0, 0], K[1, 1] = fx, fy
+        return PnPResult(T, len(m), int(res["num_inliers"]), Camera(K, camera.width, camera.height, T, camera.name))
+
+
+def pose_errors(cam_from_world: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
+    """(position error metres, rotation error degrees) between two cam_from_world (4, 4)."""
+    c_est = -cam_from_world[:3, :3].T @ cam_from_world[:3, 3]
+    c_true = -truth[:3, :3].T @ truth[:3, 3]
+    angle = Rotation.from_matrix(cam_from_world[:3, :3] @ truth[:3, :3].T).magnitude()
+    return float(np.linalg.norm(c_est - c_true)), float(np.degrees(angle))
