@@ -73,10 +73,10 @@ def scenic(args: argparse.Namespace) -> int:
               f"{m['coverage']:.4f}, outliers {m['outlier_ratio']:.3f}, error "
               f"{m['mean_error_m'] * 100:.2f} cm, {reports[-1].n_points} points, "
               f"{time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
+    viz_scenic.finish_recording()
     ibr_viz.rerun_teardown(args)
-    result = {"per_frame": [{"frame": r.frame, **r.metrics, "pairs": r.n_pairs, "mode": r.mode}
-                            for r in reports],
-              "final": dict(reports[-1].metrics)}
+    per_frame = [{"frame": r.frame, **r.metrics} for r in reports]
+    result = {"per_frame": per_frame, "final": dict(per_frame[-1])}
     if args.json:
         with open(args.json, "w") as f:
             json.dump(result, f, indent=1)
