@@ -1,0 +1,112 @@
+"""Free space and candidate goals for adaptive exploration (Foster, Wang & Grupen, "A
+Mobile Robot for Autonomous Scene Capture and Rendering", Sec. IV-B, "Choosing a goal"):
+"Intersecting the mesh with the plane defined by the camera positions yields a rough
+approximation of the boundaries of the robot's space. We choose our goal locations from
+a set of randomly-selected points within this boundary."
+
+Frames: world metres, z up; free space is a shapely (Multi)Polygon in the xy plane;
+candidate poses are SE(2) (x, y, theta) in metres and radians.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+import trimesh
+
+from explore.floorplan import FloorPlanError, _as_free_space
+from ibr.errors import InputError
+
+
+@dataclass(frozen=True)
+class FreeSpaceConfig:
+    seal_buffers_m: tuple[float, ...] = (0.05, 0.1, 0.2, 0.35)
+    """Half-widths (metres) tried in turn for thickening the slice's segments into walls:
+    a gap narrower than twice the buffer is sealed. The first that encloses the cameras wins."""
+    hull_margin_m: float = 0.75
+    """Fallback when no buffer encloses the cameras: their convex hull grown by this much."""
+
+
+def slice_segments(mesh: trimesh.Trimesh, plane_z: float) -> np.ndarray:
+    """(S, 2, 2) xy segments (metres) where `mesh` crosses the plane z = plane_z."""
+    segs = trimesh.intersections.mesh_plane(mesh, plane_normal=(0.0, 0.0, 1.0),
+                                            plane_origin=(0.0, 0.0, plane_z))
+    return np.asarray(segs, dtype=np.float64).reshape(-1, 2, 3)[:, :, :2]
+
+
+def free_space_from_slice(segments: np.ndarray, inside_xy: np.ndarray,
+                          config: FreeSpaceConfig = FreeSpaceConfig()) -> tuple[shapely.Geometry, str]:
+    """The free space bounded by slice segments (S, 2, 2) around the camera positions
+    inside_xy (M, 2), and how it was found:
+
+    - "sealed:<b>": the segments thickened by b metres (walls b thick on each side of the
+      slice) split the plane; the faces holding cameras, which do not reach the frame
+      around everything (i.e. are enclosed), are the free space. Buffers from
+      `config.seal_buffers_m` are tried smallest first, so small leaks of a rough Poisson
+      mesh are sealed while a genuinely open side is not mistaken for closed.
+    - "hull": no buffer encloses the cameras (the mesh is open on a side): the cameras'
+      convex hull grown by `config.hull_margin_m`, minus the thinnest walls.
+
+    The free space excludes the thickened walls, so it lies a buffer inside the slice."""
+    inside_xy = np.asarray(inside_xy, dtype=np.float64).reshape(-1, 2)
+    if len(inside_xy) == 0 or not np.all(np.isfinite(inside_xy)):
+        raise InputError("free space: inside_xy needs at least one finite camera position")
+    hull = shapely.MultiPoint(inside_xy).convex_hull.buffer(config.hull_margin_m)
+    if len(segments) == 0:
+        return hull, "hull"
+    lines = shapely.MultiLineString(list(segments))
+    lo = np.minimum(segments.reshape(-1, 2).min(0), inside_xy.min(0)) - 1.0
+    hi = np.maximum(segments.reshape(-1, 2).max(0), inside_xy.max(0)) + 1.0
+    frame = shapely.box(*lo, *hi)
+    for b in config.seal_buffers_m:
+        walls = lines.buffer(b, cap_style="square")
+        held = _holding(frame.difference(walls), inside_xy)
+        if held is not None and not held.intersects(frame.exterior):
+            return held, f"sealed:{b:g}"
+    walls = lines.buffer(config.seal_buffers_m[0], cap_style="square")
+    return _holding(hull.difference(walls), inside_xy) or hull, "hull"
+
+
+def _holding(geom: shapely.Geometry, xy: np.ndarray) -> shapely.Geometry | None:
+    """Union of the polygons of `geom` that contain at least one of the points xy (M, 2)."""
+    parts = [g for g in getattr(geom, "geoms", [geom])
+             if shapely.contains_xy(g, xy[:, 0], xy[:, 1]).any()]
+    return shapely.union_all(parts) if parts else None
+
+
+def free_space_from_mesh(mesh: trimesh.Trimesh, plane_z: float, inside_xy: np.ndarray,
+                         config: FreeSpaceConfig = FreeSpaceConfig()) -> shapely.Geometry:
+    """The robot's space as the paper finds it: slice `mesh` at the camera height plane_z
+    (metres) and keep the region(s) around the camera positions inside_xy (M, 2); its
+    boundary is the walls and furniture seen at that height. Copes with a leaky Poisson
+    mesh by sealing gaps, else falls back to the cameras' grown convex hull (see
+    `free_space_from_slice` for which and when).
+
+    (explore.floorplan.floor_plan_from_mesh is not reused: it makes every *closed* outline an
+    obstacle footprint, which for a room, whose walls are one closed outline around the
+    cameras, would make the room itself the obstacle.)"""
+    geom, _ = free_space_from_slice(slice_segments(mesh, plane_z), inside_xy, config)
+    try:
+        return _as_free_space(geom, f"mesh slice at z = {plane_z:g} m")
+    except FloorPlanError as e:
+        raise InputError(str(e)) from None
+
+
+def sample_candidates(free: shapely.Geometry, n: int, rng: np.random.Generator,
+                      clearance_m: float = 0.25) -> np.ndarray:
+    """(n, 3) SE(2) poses (x, y, theta) uniform in `free` eroded by clearance_m (metres),
+    headings uniform in [-pi, pi). Rejection sampling in the bounding box, vectorised."""
+    region = free.buffer(-clearance_m)
+    if region.is_empty or region.area <= 0:
+        raise InputError(f"free space has no room left after a {clearance_m} m clearance")
+    shapely.prepare(region)
+    lo, hi = np.asarray(region.bounds[:2]), np.asarray(region.bounds[2:])
+    frac = region.area / max(np.prod(hi - lo), 1e-12)
+    out = np.zeros((0, 2))
+    while len(out) < n:
+        m = int(1.2 * (n - len(out)) / frac) + 8
+        xy = rng.uniform(lo, hi, (m, 2))
+        out = np.r_[out, xy[shapely.contains_xy(region, xy[:, 0], xy[:, 1])]]
+    return np.c_[out[:n], rng.uniform(-np.pi, np.pi, n)]

@@ -1,0 +1,114 @@
+"""Navigation grid of Foster, Wang & Grupen ("A Mobile Robot for Autonomous Scene Capture
+and Rendering", Sec. IV-B, "Path-Planning"): a grid of about 100 cells on the long side,
+centred on the bounding box of the explored area. Each cell c gets a score s(c), the
+number of above-ground map points in it, and a cost, Eq. (1):
+
+    K(c) = 1/|N| sum_{c_i in N} w(c, c_i) s(c_i),   w Gaussian,
+
+computed as a separable convolution (scipy.ndimage.convolve1d along each axis).
+
+"Above ground": the paper thresholds at z = 0 with all cameras in the z = 0 plane. Our
+world frame has the floor at z = 0 and, in the synthetic office, a ceiling at 2.6 m that
+the robot passes under, so points count when z_floor_margin < z <= z_max (defaults
+0.05 and 1.5 m): the floor (and its SfM noise) and the ceiling are not obstacles.
+
+Cells: (i, j) = (row along y, column along x); cell (i, j) covers
+x in [origin_x + j cell_m, origin_x + (j + 1) cell_m), y likewise with i.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from ibr.errors import InputError
+
+
+@dataclass(frozen=True)
+class NavGridConfig:
+    cells_long_side: int = 100
+    """Cells along the long side of the bounding box (the paper: about 100)."""
+    sigma_cells: float = 1.5
+    """Standard deviation of the Gaussian weights w(c, c_i), in cells."""
+    radius_cells: int = 4
+    """Half-width of the neighbourhood N (|N| = (2 r + 1)^2 cells)."""
+    z_floor_margin: float = 0.05
+    """Points at or below this height (metres) are floor, not obstacles."""
+    z_max: float = 1.5
+    """Points above this height (metres) pass over the robot (ceiling, shelves' tops)."""
+    normalize: bool = True
+    """Divide K by its maximum so the cost is in [0, 1] whatever the point density (the
+    paper reads K as the probability that a cell holds an obstacle)."""
+
+
+@dataclass(frozen=True)
+class NavGrid:
+    """origin (2,) world xy (metres) of the corner of cell (0, 0); cell_m cell size
+    (metres); score (H, W) point counts s(c); cost (H, W) K(c) >= 0."""
+
+    origin: np.ndarray
+    cell_m: float
+    score: np.ndarray
+    cost: np.ndarray
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.cost.shape
+
+    def world_to_cell(self, xy: np.ndarray) -> np.ndarray:
+        """World xy (..., 2) metres -> integer cells (..., 2) (i, j); may be out of bounds."""
+        ji = np.floor((np.asarray(xy, dtype=np.float64) - self.origin) / self.cell_m).astype(int)
+        return ji[..., ::-1]
+
+    def cell_to_world(self, ij: np.ndarray) -> np.ndarray:
+        """Cells (..., 2) (i, j) -> world xy (..., 2) of the cell centres, metres."""
+        ij = np.asarray(ij, dtype=np.float64)
+        return self.origin + (ij[..., ::-1] + 0.5) * self.cell_m
+
+    def in_bounds(self, ij: np.ndarray) -> np.ndarray:
+        """Bool (...,) true for cells (..., 2) inside the grid."""
+        ij = np.asarray(ij)
+        H, W = self.shape
+        return (ij[..., 0] >= 0) & (ij[..., 0] < H) & (ij[..., 1] >= 0) & (ij[..., 1] < W)
+
+
+def gaussian_weights(sigma: float, radius: int) -> np.ndarray:
+    """1-D weights exp(-d^2 / (2 sigma^2)), d = -radius..radius (1 at d = 0)."""
+    d = np.arange(-radius, radius + 1, dtype=np.float64)
+    return np.exp(-0.5 * (d / sigma) ** 2)
+
+
+def kde_cost(score: np.ndarray, sigma: float, radius: int) -> np.ndarray:
+    """Eq. (1): K = (1/|N|) sum w s over the (2r+1)^2 neighbourhood, w(c, c_i) the product
+    of 1-D Gaussians (a separable convolution; zero outside the grid)."""
+    w = gaussian_weights(sigma, radius)
+    k = ndimage.convolve1d(score.astype(np.float64), w, axis=0, mode="constant")
+    k = ndimage.convolve1d(k, w, axis=1, mode="constant")
+    return k / (2 * radius + 1) ** 2
+
+
+def nav_grid_from_points(points: np.ndarray, bounds_xy, config: NavGridConfig = NavGridConfig()) -> NavGrid:
+    """The navigation grid over bounds_xy (xmin, ymin, xmax, ymax) metres (e.g. the explored
+    area's bounding box), centred on it, `cells_long_side` cells on its long side, from the
+    map points (N, 3) world metres."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    xmin, ymin, xmax, ymax = (float(v) for v in bounds_xy)
+    if not (np.isfinite([xmin, ymin, xmax, ymax]).all() and xmax > xmin and ymax > ymin):
+        raise InputError(f"nav grid: bounds_xy {bounds_xy} is not (xmin, ymin, xmax, ymax)")
+    cell = max(xmax - xmin, ymax - ymin) / config.cells_long_side
+    W = max(1, int(np.ceil((xmax - xmin) / cell - 1e-9)))
+    H = max(1, int(np.ceil((ymax - ymin) / cell - 1e-9)))
+    centre = np.array([xmin + xmax, ymin + ymax]) / 2
+    origin = centre - 0.5 * cell * np.array([W, H])
+    z = points[:, 2]
+    above = points[np.isfinite(points).all(1) & (z > config.z_floor_margin) & (z <= config.z_max)]
+    ji = np.floor((above[:, :2] - origin) / cell).astype(int)
+    ok = (ji[:, 0] >= 0) & (ji[:, 0] < W) & (ji[:, 1] >= 0) & (ji[:, 1] < H)
+    score = np.zeros((H, W))
+    np.add.at(score, (ji[ok, 1], ji[ok, 0]), 1.0)
+    cost = kde_cost(score, config.sigma_cells, config.radius_cells)
+    if config.normalize and cost.max() > 0:
+        cost = cost / cost.max()
+    return NavGrid(origin, cell, score, cost)

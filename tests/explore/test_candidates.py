@@ -1,0 +1,63 @@
+"""Free space from the map mesh sliced at camera height, and candidate goals inside it
+(Foster, Wang & Grupen, Sec. IV-B, "Choosing a goal")."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import shapely
+import trimesh
+
+from explore.candidates import free_space_from_mesh, free_space_from_slice, sample_candidates, slice_segments
+from ibr.errors import InputError
+
+
+def _iou(a, b) -> float:
+    return a.intersection(b).area / a.union(b).area
+
+
+@pytest.fixture(scope="module")
+def camera_xy(office):
+    return np.array([c.center[:2] for c in office.default_cameras(30)])
+
+
+def test_free_space_of_office_matches_truth(office, camera_xy):
+    free = free_space_from_mesh(office.mesh, office.view_height_m, camera_xy)
+    assert _iou(free, office.free_space) > 0.8
+    assert shapely.contains_xy(free, camera_xy[:, 0], camera_xy[:, 1]).all()
+    # at camera height the cabinet and the shelf are walls: their footprints are not free
+    assert not free.contains(shapely.Point(2.75, -0.2)) and not free.contains(shapely.Point(0.0, 3.8))
+
+
+def test_leaky_mesh_is_sealed(office, camera_xy):
+    v, f = trimesh.remesh.subdivide_to_size(office.mesh.vertices, office.mesh.faces, 0.25)
+    mesh = trimesh.Trimesh(v, f, process=False)
+    mesh.update_faces(np.random.default_rng(0).random(len(f)) > 0.05)  # 5% holes
+    _, how = free_space_from_slice(slice_segments(mesh, 1.2), camera_xy)
+    assert how.startswith("sealed")
+    assert _iou(free_space_from_mesh(mesh, 1.2, camera_xy), office.free_space) > 0.8
+
+
+def test_open_mesh_falls_back_to_camera_hull(office, camera_xy):
+    segs = slice_segments(office.mesh, 1.2)
+    open_side = segs[~np.all(np.isclose(segs[:, :, 1], 4.0), axis=1)]  # drop the y = 4 wall
+    free, how = free_space_from_slice(open_side, camera_xy)
+    assert how == "hull" and len(open_side) < len(segs)
+    hull = shapely.MultiPoint(camera_xy).convex_hull
+    assert shapely.contains_xy(free, camera_xy[:, 0], camera_xy[:, 1]).all()
+    assert free.within(hull.buffer(0.76))
+
+
+def test_candidates_inside_eroded_free_space(office, camera_xy):
+    free = free_space_from_mesh(office.mesh, 1.2, camera_xy)
+    poses = sample_candidates(free, 300, np.random.default_rng(5), clearance_m=0.3)
+    assert poses.shape == (300, 3)
+    assert shapely.contains_xy(free.buffer(-0.299), poses[:, 0], poses[:, 1]).all()
+    assert np.all((poses[:, 2] >= -np.pi) & (poses[:, 2] < np.pi)) and np.std(poses[:, 2]) > 1.0
+    np.testing.assert_array_equal(poses, sample_candidates(free, 300, np.random.default_rng(5), 0.3))
+    spread = np.ptp(poses[:, :2], axis=0)
+    assert spread[0] > 4.0 and spread[1] > 6.0  # uniform over the room, not a corner
+    with pytest.raises(InputError, match="clearance"):
+        sample_candidates(free, 5, np.random.default_rng(0), clearance_m=10.0)
+    with pytest.raises(InputError, match="inside_xy"):
+        free_space_from_mesh(office.mesh, 1.2, np.zeros((0, 2)))
