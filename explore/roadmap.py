@@ -2,9 +2,11 @@
 Blaer & Allen 2003): the generalised Voronoi diagram of the obstacle polygons is
 approximated by the Voronoi diagram of points sampled densely along the obstacle edges
 (`scipy.spatial.Voronoi`); Voronoi edges with an end point inside an obstacle (outside
-the free space), or that leave the free space, are removed. A path goes from the start
-straight onto a visible roadmap node, along the shortest roadmap path (Dijkstra,
-`scipy.sparse.csgraph`) to a node that sees the goal, then straight to the goal.
+the free space), or that leave the free space, are removed. As in the paper, a path goes
+from the start straight onto a visible roadmap node, along the shortest roadmap path
+(Dijkstra, `scipy.sparse.csgraph`) to the node nearest the goal that sees it, then straight
+to the goal; it never cuts across open space off the roadmap, so it keeps the Voronoi
+diagram's clearance from the obstacles.
 
 Frame: world xy, metres.
 """
@@ -20,6 +22,11 @@ from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import Voronoi, cKDTree
 
 from explore.floorplan import FloorPlan
+from ibr.errors import InputError
+
+
+class RoadmapError(InputError):
+    """Points that the roadmap cannot join: off the roadmap or in unconnected parts."""
 
 
 @dataclass
@@ -75,25 +82,20 @@ def build_roadmap(plan: FloorPlan, spacing_m: float = 0.5) -> Roadmap:
 
 def shortest_paths(roadmap: Roadmap, points: np.ndarray) -> tuple[np.ndarray, list[list[np.ndarray]]]:
     """Path lengths (n, n) metres between points (n, 2) over the roadmap, and the paths:
-    paths[i][j] is a (K, 2) polyline from point i to point j (inf / empty if unreachable).
-    A straight collision-free segment is used when it is shorter."""
+    paths[i][j] is a (K, 2) polyline from point i to point j (inf / empty if unreachable):
+    point i, its attachment node, the Dijkstra path, point j's attachment node, point j."""
     n = len(points)
     attach = np.array([roadmap.connect(p) for p in points])
     if (attach < 0).any():
         bad = points[attach < 0]
-        raise ValueError(f"points {bad.tolist()} see no roadmap node")
+        raise RoadmapError(f"points {np.round(bad, 2).tolist()} see no roadmap node in a straight line")
     dist, pred = dijkstra(roadmap.graph, directed=False, indices=attach, return_predecessors=True)
     lengths = np.full((n, n), np.inf)
     paths: list[list[np.ndarray]] = [[np.empty((0, 2))] * n for _ in range(n)]
-    direct = shapely.covers(roadmap.free_space, shapely.linestrings(
-        [[points[i], points[j]] for i in range(n) for j in range(n)])).reshape(n, n)
     for i in range(n):
         for j in range(n):
             if i == j:
                 lengths[i, j], paths[i][j] = 0.0, points[[i]]
-                continue
-            if direct[i, j]:
-                lengths[i, j], paths[i][j] = np.linalg.norm(points[j] - points[i]), points[[i, j]]
                 continue
             if not np.isfinite(dist[i, attach[j]]):
                 continue

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import elkai
 import numpy as np
 
-from explore.roadmap import Roadmap, shortest_paths
+from explore.roadmap import Roadmap, RoadmapError, shortest_paths
 
 
 @dataclass
@@ -45,7 +45,9 @@ def plan_tour(roadmap: Roadmap, viewpoints: np.ndarray, runs: int = 10) -> Tour:
     """The shortest closed tour of viewpoints (n, 2) along roadmap paths."""
     lengths, paths = shortest_paths(roadmap, viewpoints)
     if not np.isfinite(lengths).all():
-        raise ValueError("some viewpoints cannot reach each other over the roadmap")
+        bad = sorted({int(i) for i in np.argwhere(~np.isfinite(lengths))[:, 1]})
+        raise RoadmapError(f"viewpoints {bad} cannot be reached over the roadmap from the others "
+                           "(the free space is in unconnected parts)")
     order = solve_tsp(lengths, runs)
     legs = [paths[a][b] for a, b in zip(order, order[1:] + order[:1])] if len(order) > 1 else []
     path = np.vstack([legs[0]] + [leg[1:] for leg in legs[1:]]) if legs else viewpoints[order]

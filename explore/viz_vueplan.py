@@ -1,7 +1,9 @@
 """Rerun logging for VuePlan: the site mesh, Phase I candidates / views / visible walls,
 the Voronoi roadmap and tour, scans, the voxel space and Phase II candidate scores.
-Entity paths follow DESIGN.md (world/map/mesh, world/voxels, world/nbv/candidates,
-world/plan/path, plots/...)."""
+Entity paths follow DESIGN.md: world/map/mesh, world/map/points/<scan>, world/plan/...
+(phase1 candidates and views, roadmap, tour = world/plan/path, scan positions),
+world/voxels/{occupied,boundary_unseen}, world/nbv/{candidates,best}, plots/vueplan/...;
+timeline `step` = scan / Phase II iteration."""
 
 from __future__ import annotations
 
@@ -39,11 +41,13 @@ def log_tour(path: np.ndarray) -> None:
 
 
 def log_scan(step: int, name: str, origin: np.ndarray, points: np.ndarray, max_points: int = 50_000) -> None:
-    """One scan's points (subsampled) and its scanner position at timeline step."""
+    """One scan's points (subsampled) under the map's point cloud, world/map/points/<name>,
+    and its scanner position at world/plan/scans/<name>, at timeline step."""
     rr.set_time("step", sequence=step)
     pts = points[:: max(1, len(points) // max_points)]
-    rr.log(f"world/scans/{name}", rr.Points3D(pts, colors=[[60, 180, 255]], radii=0.03))
-    rr.log(f"world/scans/{name}/origin", rr.Points3D([origin], colors=[[255, 0, 0]], radii=0.3))
+    rr.log(f"world/map/points/{name}", rr.Points3D(pts, colors=[[60, 180, 255]], radii=0.03))
+    rr.log(f"world/plan/scans/{name}", rr.Points3D([origin], colors=[[255, 0, 0]], radii=0.3,
+                                                   labels=[name]))
 
 
 def log_voxels(step: int, grid: VoxelGrid, max_boxes: int = 60_000) -> None:
@@ -58,15 +62,18 @@ def log_voxels(step: int, grid: VoxelGrid, max_boxes: int = 60_000) -> None:
                                                       colors=[[230, 0, 230]]))
 
 
-def log_nbv_candidates(step: int, views: np.ndarray, counts: np.ndarray) -> None:
-    """Potential views coloured by how many boundary-unseen voxels they see."""
+def log_nbv_candidates(step: int, views: np.ndarray, counts: np.ndarray, nbv: np.ndarray | None) -> None:
+    """Potential views coloured by how many boundary-unseen voxels they see (blue: none,
+    red: the most), and the chosen next-best view (cleared when none is acquired)."""
     rr.set_time("step", sequence=step)
     s = counts / max(1, counts.max())
     colors = np.c_[255 * s, 80 + 0 * s, 255 * (1 - s)].astype(np.uint8)
     rr.log("world/nbv/candidates", rr.Points3D(views, colors=colors, radii=0.1))
-    if counts.max() > 0:
-        rr.log("world/nbv/best", rr.Points3D([views[int(np.argmax(counts))]], colors=[[255, 255, 0]],
-                                             radii=0.4))
+    if nbv is None:
+        rr.log("world/nbv/best", rr.Clear(recursive=False))
+    else:
+        rr.log("world/nbv/best", rr.Points3D([nbv], colors=[[255, 255, 0]], radii=0.4,
+                                             labels=[f"NBV sees {int(counts.max())}"]))
 
 
 def log_phase2_row(step: int, row) -> None:

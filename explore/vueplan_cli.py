@@ -113,19 +113,18 @@ def run(args: argparse.Namespace) -> int:
     _progress(f"Phase I: {len(p1.chosen)} views, {100 * p1.boundary_coverage:.1f}% of the wall "
               f"boundary in {p1.seconds:.2f} s")
     out["phase1"] = {"views": len(p1.chosen), "boundary_coverage": p1.boundary_coverage,
-                     "seconds": p1.seconds, "positions": p1.views.tolist()}
+                     "seconds": p1.seconds}
     vv.log_phase1(p1.positions, p1.chosen, plan.wall_segments())
 
     roadmap = build_roadmap(plan, args.roadmap_spacing)
     tour = plan_tour(roadmap, p1.views)
-    out["tour_length_m"] = tour.length_m
-    out["tour_order"] = tour.order
     _progress(f"tour: {tour.length_m:.1f} m over a {len(roadmap.nodes)}-node Voronoi roadmap")
     vv.log_roadmap(roadmap.nodes, roadmap.edges)
     vv.log_tour(tour.path)
 
-    if not args.phase1_only:
-        out["phase2"] = run_phase2(args, mesh, plan, renderer, height, p1.views[tour.order], rng, vv)
+    out["phase2"] = ([] if args.phase1_only else
+                     run_phase2(args, mesh, plan, renderer, height, p1.views[tour.order], rng, vv))
+    out["tour_length_m"] = tour.length_m
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=2) + "\n")
     viz.rerun_teardown(args)
@@ -166,8 +165,8 @@ def run_phase2(args, mesh, plan, renderer, height, views_xy, rng, vv) -> list[di
         k = len(rows_seen)
         rows_seen.append(row)
         vv.log_voxels(step, grid)
-        vv.log_nbv_candidates(step, candidates, counts)
-        vv.log_phase2_row(k, row)
+        vv.log_nbv_candidates(step, candidates, counts, row.nbv)
+        vv.log_phase2_row(step, row)
         _progress(f"{'Phase I' if k == 0 else f'NBV {k}'}: boundary unseen {row.boundary_unseen}, "
                   f"best view sees {row.visible_to_nbv} ({row.seconds:.1f} s)")
 

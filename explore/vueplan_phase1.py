@@ -35,7 +35,7 @@ import numpy as np
 import pyvispoly as pv
 import shapely
 
-from explore.floorplan import FloorPlan
+from explore.floorplan import FloorPlan, FloorPlanError
 
 
 @dataclass(frozen=True)
@@ -102,7 +102,8 @@ def sample_candidates(free_space: shapely.Geometry, n: int, rng: np.random.Gener
     boundary, and headings (n,) in [-pi, pi) (all 0 when the field of view is 360 deg)."""
     region = free_space.buffer(-clearance_m) if clearance_m > 0 else free_space
     if region.is_empty:
-        raise ValueError("no free space left after the candidate clearance")
+        raise FloorPlanError(f"the floor plan has no free space {clearance_m} m away from its "
+                             "boundary to place candidate views in")
     x0, y0, x1, y1 = region.bounds
     out = np.empty((0, 2))
     while len(out) < n:

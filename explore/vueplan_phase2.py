@@ -221,7 +221,8 @@ def plan_phase2(grid: VoxelGrid, views: np.ndarray, acquire: Callable[[np.ndarra
     """Algorithm 2 (3DPLAN) on a voxel grid that already holds the Phase I scans.
     views (P, 3) potential views; acquire(view) scans at a view and returns a Scan
     (origin, points, no_return, max_range_m), which is inserted into the grid; coverage()
-    reports the current true-surface coverage. on_row(row, counts) is called per row.
+    reports the current true-surface coverage. on_row(row, counts) is called per row
+    (row.nbv is None on the last row: no view is acquired).
     Returns one row for the state after Phase I and after each NBV; the last row's
     visible_to_nbv is the count that fell below the threshold (or max_views was hit)."""
     rows = []
@@ -235,10 +236,12 @@ def plan_phase2(grid: VoxelGrid, views: np.ndarray, acquire: Callable[[np.ndarra
                         int(counts[best]) if len(counts) else 0, coverage(),
                         time.perf_counter() - t, views[best] if len(counts) else None)
         rows.append(row)
+        stop = row.visible_to_nbv < cfg.threshold or len(rows) > cfg.max_views
+        if stop:
+            row.nbv = None
         if on_row is not None:
             on_row(row, counts)
-        if row.visible_to_nbv < cfg.threshold or len(rows) > cfg.max_views:
-            row.nbv = None
+        if stop:
             return rows
         scan = acquire(views[best])
         insert_scan(grid, scan.origin, scan.points, scan.no_return, scan.max_range_m)

@@ -49,6 +49,12 @@ def test_tour_visits_every_phase1_view_on_free_paths(courtyard):
     for v in views:  # the path passes through every viewpoint
         assert np.min(np.linalg.norm(tour.path - v, axis=1)) < 1e-9
     lengths, paths = shortest_paths(rm, views)
+    # every leg is view -> roadmap nodes (Dijkstra path) -> view, as in the paper
+    node_set = {tuple(p) for p in rm.nodes}
+    for a, b in zip(tour.order, tour.order[1:] + tour.order[:1]):
+        leg = paths[a][b]
+        assert len(leg) >= 3 and all(tuple(p) in node_set for p in leg[1:-1])
+        assert path_is_free(plan.free_space, leg)
     assert tour.length_m == pytest.approx(np.linalg.norm(np.diff(tour.path, axis=0), axis=1).sum())
     # no leg is shorter than the straight line between its ends
     euclid = np.linalg.norm(views[:, None] - views[None], axis=2)

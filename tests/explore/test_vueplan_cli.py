@@ -26,8 +26,10 @@ def test_vueplan_cli_writes_json_and_table(tmp_path, capsys, gl_ctx):
     assert res["tour_length_m"] > 0
     rows = res["phase2"]
     assert 1 <= len(rows) <= 3
+    assert set(res) == {"phase1", "phase2", "tour_length_m"}
+    assert set(res["phase1"]) == {"views", "boundary_coverage", "seconds"}
     keys = {"seen_occupied", "unseen", "boundary_unseen", "visible_to_nbv", "surface_coverage", "seconds"}
-    assert all(keys <= set(r) for r in rows)
+    assert all(set(r) == keys for r in rows)
     assert "Boundary unseen" in capsys.readouterr().out
     assert (tmp_path / "vp.rrd").stat().st_size > 0
 
@@ -43,7 +45,7 @@ def test_vueplan_cli_phase1_only_with_floorplan(tmp_path, gl_ctx):
                    "--candidates", "200", "--json", str(out), "--save", str(tmp_path / "p1.rrd")])
     assert args.func(args) == 0
     res = json.loads(out.read_text())
-    assert "phase2" not in res and res["phase1"]["boundary_coverage"] >= 0.95
+    assert res["phase2"] == [] and res["phase1"]["boundary_coverage"] >= 0.95
 
 
 def test_vueplan_cli_bad_site(tmp_path):
@@ -53,4 +55,21 @@ def test_vueplan_cli_bad_site(tmp_path):
             args.func(args)
     args = _parse(["vueplan", "synthetic:courtyard", "--voxel", "0", "--save", str(tmp_path / "x.rrd")])
     with pytest.raises(InputError, match="--voxel"):
+        args.func(args)
+
+
+@pytest.mark.parametrize("wkt,match", [
+    ("POLYGON ((0 0, 0.4 0, 0.4 0.4, 0 0.4, 0 0))", "no free space"),  # narrower than the clearance
+    # two separate yards: views that the roadmap cannot join
+    ("MULTIPOLYGON (((0 0, 10 0, 10 10, 0 10, 0 0), (4 4, 6 4, 6 6, 4 6, 4 4)),"
+     " ((20 0, 30 0, 30 10, 20 10, 20 0), (24 4, 26 4, 26 6, 24 6, 24 4)))", "cannot be reached")])
+def test_vueplan_cli_unusable_floor_plans(tmp_path, wkt, match):
+    from ibr.synthetic import make_world
+    mesh_path, plan_path = tmp_path / "site.ply", tmp_path / "site.wkt"
+    make_world("courtyard").mesh.export(mesh_path)
+    plan_path.write_text(wkt)
+    # no overlap constraint, so the greedy cover takes views in both yards
+    args = _parse(["vueplan", str(mesh_path), "--floorplan", str(plan_path), "--phase1-only",
+                   "--overlap", "0", "--candidates", "100", "--save", str(tmp_path / "x.rrd")])
+    with pytest.raises(InputError, match=match):
         args.func(args)

@@ -111,3 +111,20 @@ def test_limited_field_of_view_needs_headings():
     # the same positions see at most as much with a 90 deg field of view
     assert (res.cover <= full.cover).all()
     assert res.boundary_coverage >= 0.9
+
+
+@pytest.mark.parametrize("max_range,heading_deg,fov_deg,covered_m", [
+    (30.0, 0.0, 360.0, 2.0),    # the hole's whole x = 4 face; its other faces are hidden
+    (2.2, 0.0, 360.0, 1.8),     # range circle: |y - 5| <= sqrt(2.2^2 - 2^2) = 0.92 m
+    (30.0, 0.0, 30.0, 1.0),     # 30 deg wedge: |y - 5| <= 2 tan 15 deg = 0.54 m
+    (30.0, 180.0, 90.0, 0.0)])  # facing away from the hole
+def test_phase1_cover_of_one_view_in_a_hand_made_room(max_range, heading_deg, fov_deg, covered_m):
+    # 10 x 10 m yard, a 2 x 2 m obstacle at (4..6, 4..6), one view at (2, 5); the wall
+    # elements are 0.1 m, counted when their midpoint lies on a clipped visible edge
+    plan = FloorPlan(shapely.box(0, 0, 10, 10).difference(shapely.box(4, 4, 6, 6)))
+    cfg = Phase1Config(max_range_m=max_range, field_of_view_rad=np.radians(fov_deg), min_gain=0.0)
+    res = plan_phase1(plan, cfg, np.random.default_rng(0), positions=np.array([[2.0, 5.0]]),
+                      headings=np.radians([heading_deg]))
+    assert res.element_length.sum() == pytest.approx(8.0)
+    assert res.cover[0] @ res.element_length == pytest.approx(covered_m)
+    assert res.boundary_coverage == pytest.approx(covered_m / 8.0)

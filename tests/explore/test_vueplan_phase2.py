@@ -3,6 +3,7 @@ with known answers, and the NBV loop on the synthetic courtyard."""
 
 import numpy as np
 import pytest
+import shapely
 
 from explore.floorplan import FloorPlan
 from explore.voxel_grid import (EMPTY, OCCUPIED, UNSEEN, VoxelGrid, boundary_unseen, insert_scan,
@@ -63,6 +64,38 @@ def test_visibility_count_known_answer(grazing_deg, max_range, expected):
     counts = count_visible(grid, views, cfg)
     assert counts.tolist() == [expected, 0]
     assert count_visible_per_ray(grid, views, cfg).tolist() == [expected, 0]
+
+
+def test_half_space_behind_the_exposed_face_is_pruned_before_walking():
+    # unseen column x = 4 whose +x neighbour is occupied: only its -x face is exposed.
+    # Views at x = 7.5 stand behind that face: they count 0 and their rays are never walked.
+    grid = VoxelGrid.covering([0, 0, 0], [9, 5, 1], 1.0)
+    grid.state[:] = EMPTY
+    grid.state[4] = UNSEEN
+    grid.state[5] = OCCUPIED
+    front = np.array([[0.5, 2.5, 0.5], [1.5, 2.5, 0.5]])
+    behind = np.array([[7.5, 2.5, 0.5], [8.5, 0.5, 0.5]])
+    cfg = Phase2Config(min_range_m=0.0, max_range_m=60.0, max_grazing_rad=np.radians(70))
+    stats = {}
+    counts = count_visible(grid, np.vstack([front, behind]), cfg, stats=stats)
+    # grazing: from (0.5, 2.5) the voxels at y = 0.5..4.5 are at atan(2/3.5) = 29.7 deg at
+    # most; from (1.5, 2.5) at atan(2/2.5) = 38.7 deg: all 5 seen from both
+    assert counts.tolist() == [5, 5, 0, 0]
+    assert stats["pairs"] == 5 * 4 and stats["rays"] == 5 * 2
+
+
+def test_ground_candidates_lie_in_free_space_at_sensor_height():
+    grid = VoxelGrid.covering([0, 0, 0], [10, 10, 3], 1.0)
+    free = shapely.box(0, 0, 10, 10).difference(shapely.box(4, 4, 6, 6))
+    cfg = Phase2Config(sensor_height_m=1.6, candidate_clearance_m=0.3)
+    views = ground_candidates(grid, free, cfg)
+    assert len(views) == 100 - 4 and np.all(views[:, 2] == 1.6)  # the 4 centres in the hole go
+    np.testing.assert_allclose(np.mod(views[:, :2], 1.0), 0.5)
+    stride = ground_candidates(grid, free, Phase2Config(candidate_stride=2))
+    assert len(stride) == 25 - 1  # centres 0.5, 2.5, ..., 8.5; (4.5, 4.5) is in the hole
+    # 0.6 m clearance: the outer ring of centres goes (8 x 8 left) and so do the 4 x 4
+    # centres 3.5..6.5 around the hole, except its 4 corners (0.71 m from the hole's corners)
+    assert len(ground_candidates(grid, free, Phase2Config(candidate_clearance_m=0.6))) == 64 - (16 - 4)
 
 
 def test_vectorised_walk_matches_scalar_reference():
