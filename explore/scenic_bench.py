@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 
-from explore.scenic_cost import NBVConfig, pose_rays, ray_costs, view_costs
+from explore.scenic_cost import NBVConfig, pose_rays, ray_costs, too_near, view_costs
 from explore.scenic_map import EMPTY, OCCUPIED
 from explore.scenic_session import ScenicSession, SessionConfig
 from ibr.synthetic import make_world
@@ -28,7 +28,9 @@ def naive_view_cost(vmap, pose: np.ndarray, model, config: NBVConfig) -> float:
                 break
             t += step
         hits.append(hit)
-    return float(ray_costs(vmap, np.array(hits), rays, config).mean())
+    cost = ray_costs(vmap, np.array(hits), rays, config)
+    cost[too_near(vmap, pose[None, :3], np.array(hits)[None], config.min_range_m)[0]] = 1.0
+    return float(cost.mean())
 
 
 def nbv_poses_per_s() -> dict:

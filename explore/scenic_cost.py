@@ -10,7 +10,8 @@ with λ_p, e_p the largest eigenvalue and eigenvector of the point's covariance 
 lowest for rays perpendicular to e_p, where a new view shrinks the point's uncertainty most.
 A ray that meets no occupied voxel (it reaches an unobserved voxel or leaves the map) costs
 γ ∈ [0, 1]: γ = 0 biases the cost space to exploration, γ = 1 to refinement. The view cost
-is the mean over the rays (4).
+is the mean over the rays (4). One addition to the paper: occupied voxels nearer than a
+near limit `min_range_m` cost 1 (see NBVConfig).
 
 λ_p is in m²; `eigen_scale` (1/m²) makes it dimensionless before the exponential (the paper
 leaves the unit implicit). Rays are traversed through the voxels by marching every half
@@ -39,8 +40,14 @@ class NBVConfig:
     """Rays cast down the image height."""
     max_range_m: float = 12.0
     """Rays stop after this distance (metres); a ray that gets there costs γ."""
-    eigen_scale: float = 400.0
-    """Multiplies λ_p (m^2) to make it dimensionless: 1 / (0.05 m)^2 by default."""
+    eigen_scale: float = 100.0
+    """Multiplies λ_p (m^2) to make it dimensionless: 1 / (0.1 m)^2 by default, the scale of
+    the σ of a fresh two-view point at a few metres."""
+    min_range_m: float = 1.0
+    """Near limit (metres): a ray whose first occupied voxel is nearer than this costs 1, as
+    a stereo pair cannot reconstruct geometry that close (its two views barely overlap at
+    the planner's step). Not in the paper (its poses snap to a recorded dataset, which keeps
+    them off the walls); 0 turns it off."""
     poses_per_chunk: int = 128
     """Poses whose rays are marched in one array (bounds memory)."""
 
@@ -121,6 +128,15 @@ def ray_costs(vmap: ScenicMap, hit: np.ndarray, rays: np.ndarray, config: NBVCon
     return cost
 
 
+def too_near(vmap: ScenicMap, origins: np.ndarray, hit: np.ndarray, min_range_m: float) -> np.ndarray:
+    """(P, R) whether the occupied voxel each ray hits (flat index, -1 none) has its centre
+    nearer than min_range_m to the ray's origin (P, 3)."""
+    if min_range_m <= 0:
+        return np.zeros(hit.shape, bool)
+    centres = vmap.voxel_centres(np.stack(np.unravel_index(np.maximum(hit, 0), vmap.state.shape), -1))
+    return (hit >= 0) & (np.linalg.norm(centres - origins[:, None, :], axis=-1) < min_range_m)
+
+
 def view_costs(vmap: ScenicMap, poses: np.ndarray, model: CameraModel,
                config: NBVConfig = NBVConfig()) -> np.ndarray:
     """C_view (P,) in [0, 1] of 4-DoF poses (P, 4), eq. (4): the mean ray cost."""
@@ -130,6 +146,7 @@ def view_costs(vmap: ScenicMap, poses: np.ndarray, model: CameraModel,
         chunk = poses[a:a + config.poses_per_chunk]
         rays = pose_rays(chunk, model, config)
         hit = first_occupied(vmap, chunk[:, :3], rays, config.max_range_m)
-        c = ray_costs(vmap, hit.ravel(), rays.reshape(-1, 3), config)
-        out[a:a + len(chunk)] = c.reshape(hit.shape).mean(axis=1)
+        c = ray_costs(vmap, hit.ravel(), rays.reshape(-1, 3), config).reshape(hit.shape)
+        c[too_near(vmap, chunk[:, :3], hit, config.min_range_m)] = 1.0
+        out[a:a + len(chunk)] = c.mean(axis=1)
     return out
