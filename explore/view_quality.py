@@ -41,6 +41,11 @@ from ibr.mesh_renderer import MeshRenderer
 from localization.pose_views import se2_views
 
 
+MAX_SHARED_SOURCES = 256
+"""Up to this many sources are copied into the work group's shared memory (16 floats
+each); more are read from the storage buffer."""
+
+
 class ViewQualityError(InputError):
     """Sources or candidate views that cannot be scored (none, wrong shapes, NaN)."""
 
@@ -116,7 +121,9 @@ class ViewQuality:
         self.ctx = ctx or shared_context()
         self.renderer = MeshRenderer(proxy_mesh, self.ctx, near=config.near, far=config.far)
         self.sources = self._build_sources(list(sources))
-        self.program = load_compute(self.ctx, "view_quality", package="explore")
+        shared = len(sources) <= MAX_SHARED_SOURCES
+        self.program = load_compute(self.ctx, "view_quality", {
+            "SHARED_SOURCES": int(shared), "MAX_SHARED": MAX_SHARED_SOURCES}, package="explore")
         self._upload_sources()
 
     def _build_sources(self, sources: list[Camera]) -> SourceSet:
@@ -136,9 +143,9 @@ class ViewQuality:
             raise ViewQualityError(f"{n} sources exceed this GL's {limit} texture-array layers")
         self._depth_tex = self.ctx.texture_array((w, h, n), 1, s.depths.tobytes(), dtype="f4")
         self._depth_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        packed = np.zeros((n, 20), np.float32)
-        packed[:, :16] = np.transpose(s.pixel_from_world, (0, 2, 1)).reshape(n, 16)  # column-major
-        packed[:, 16:19] = s.centres
+        packed = np.zeros((n, 16), np.float32)  # std430 struct Source: 3 rows, centre
+        packed[:, :12] = s.pixel_from_world[:, :3].reshape(n, 12)
+        packed[:, 12:15] = s.centres
         self._source_buf = self.ctx.buffer(packed.tobytes())
         p, c = self.program, self.config
         p["u_n_sources"] = n

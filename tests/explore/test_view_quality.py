@@ -98,3 +98,14 @@ def test_bad_input_is_named(proxy, vq, gl_ctx):
         vq.score_views(np.full((1, 4, 4), np.nan), np.zeros((1, 3)))
     with pytest.raises(ViewQualityError, match="config.size"):
         vq.score_cameras([Camera(intrinsics_from_fov(60, 100, 80), 100, 80)])
+
+
+def test_storage_buffer_path_agrees_with_shared_memory_path(office, proxy, vq, gl_ctx, monkeypatch):
+    import explore.view_quality as view_quality
+
+    monkeypatch.setattr(view_quality, "MAX_SHARED_SOURCES", 8)  # 24 sources: no shared copy
+    vq_ssbo = ViewQuality(proxy, office.default_cameras(24, 160, 120), gl_ctx, ViewQualityConfig(size=SIZE))
+    template = Camera(intrinsics_from_fov(70, *SIZE), *SIZE)
+    poses = _poses(office, 6, 2)
+    np.testing.assert_allclose(vq_ssbo.score_poses(poses, template, forward_mount(1.1)),
+                               vq.score_poses(poses, template, forward_mount(1.1)), atol=1e-6)
