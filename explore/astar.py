@@ -120,18 +120,19 @@ def grid_graph(cost: np.ndarray, cost_weight: float = 10.0) -> scipy.sparse.csr_
     cost = check_cost(cost)
     H, W = cost.shape
     free = np.isfinite(cost)
-    I, J = np.mgrid[0:H, 0:W]
+    idx = np.arange(H * W).reshape(H, W)
     rows, cols, vals = [], [], []
     for di, dj in MOVES:
-        vi, vj = I + di, J + dj
-        ok = (vi >= 0) & (vi < H) & (vj >= 0) & (vj < W)
-        ui, uj, vi, vj = I[ok], J[ok], vi[ok], vj[ok]
-        allowed = free[vi, vj]
-        if di and dj:
-            allowed &= free[ui, vj] & free[vi, uj]
-        ui, uj, vi, vj = ui[allowed], uj[allowed], vi[allowed], vj[allowed]
-        rows.append(ui * W + uj)
-        cols.append(vi * W + vj)
-        vals.append(math.hypot(di, dj) * (1.0 + cost_weight * cost[vi, vj]))
+        i0, i1, j0, j1 = max(0, -di), H - max(0, di), max(0, -dj), W - max(0, dj)
+
+        def at(a: np.ndarray, oi: int, oj: int) -> np.ndarray:  # a at u + (oi, oj), u in the block
+            return a[i0 + oi:i1 + oi, j0 + oj:j1 + oj]
+
+        allowed = at(free, di, dj).copy()
+        if di and dj:  # the two cells the diagonal passes between
+            allowed &= at(free, di, 0) & at(free, 0, dj)
+        rows.append(at(idx, 0, 0)[allowed])
+        cols.append(at(idx, di, dj)[allowed])
+        vals.append(math.hypot(di, dj) * (1.0 + cost_weight * at(cost, di, dj)[allowed]))
     return scipy.sparse.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                                    shape=(H * W, H * W))
