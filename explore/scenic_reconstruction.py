@@ -38,6 +38,9 @@ class StereoConfig:
     """Largest reprojection error of a triangulated point in either image (pixels)."""
     max_depth_m: float = 30.0
     """Points farther than this from either camera are dropped (metres)."""
+    min_angle_deg: float = 2.0
+    """Points whose two viewing rays meet at less than this angle are dropped (degrees):
+    near the epipole of a forward motion the depth is a guess."""
     max_sigma_m: float = 0.3
     """Points whose largest standard deviation exceeds this are dropped (metres)."""
     n_features: int = 2000
@@ -191,6 +194,9 @@ def reconstruct_pair(left: Camera, right: Camera, left_image: np.ndarray, right_
         proj, depth = cam.project(np.where(keep[:, None], X, 0.0))
         keep &= (depth > 0.05) & (depth < config.max_depth_m)
         keep &= np.linalg.norm(proj - uv, axis=1) < config.max_reprojection_px
+    ray_l, ray_r = X - left.center, X - right.center
+    cos = np.sum(ray_l * ray_r, 1) / np.maximum(np.linalg.norm(ray_l, axis=1) * np.linalg.norm(ray_r, axis=1), 1e-12)
+    keep &= cos < np.cos(np.radians(config.min_angle_deg))
     X, uv_l, uv_r = X[keep], uv_l[keep], uv_r[keep]
     if len(X) == 0:
         return np.zeros((0, 3)), np.zeros((0, 3, 3))

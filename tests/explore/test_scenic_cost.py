@@ -4,7 +4,7 @@ uncertainty axis, γ for rays that meet nothing observed, C_view the ray mean.""
 import numpy as np
 import pytest
 
-from explore.scenic_cost import NBVConfig, first_occupied, point_cost, pose_rays, view_costs
+from explore.scenic_cost import NBVConfig, first_occupied, point_cost, pose_rays, too_near, view_costs
 from explore.scenic_map import EMPTY, MapConfig, ScenicMap
 from explore.scenic_pose import CameraModel
 
@@ -37,7 +37,7 @@ def wall_map(axis: np.ndarray, lam: float = 0.01) -> ScenicMap:
 def test_view_cost_prefers_rays_across_the_uncertainty():
     """The same head-on view of a wall costs more when the points are uncertain along the
     viewing direction (rays ∥ e_p) than across it (rays ⟂ e_p)."""
-    cfg = NBVConfig(gamma=1.0, eigen_scale=400.0, ray_cols=8, ray_rows=6)
+    cfg = NBVConfig(gamma=1.0, eigen_scale=400.0, ray_cols=8, ray_rows=6, min_range_m=0.0)
     q = np.array([[0.0, 0.3, 1.0, np.pi / 2]])
     along = view_costs(wall_map(np.array([0.0, 1.0, 0.0])), q, MODEL, cfg)[0]
     across = view_costs(wall_map(np.array([1.0, 0.0, 0.0])), q, MODEL, cfg)[0]
@@ -57,7 +57,7 @@ def test_view_cost_is_mean_of_psi_and_gamma():
     """Half the rays meet the wall (ψ known by hand), the other half see unobserved space."""
     m = wall_map(np.array([0.0, 0.0, 1.0]), lam=0.005)  # e_p vertical: every ray ⟂ in yaw only
     m.state[:, :, 10:] = 0  # upper half unobserved
-    cfg = NBVConfig(gamma=0.4, eigen_scale=100.0, ray_cols=4, ray_rows=4)
+    cfg = NBVConfig(gamma=0.4, eigen_scale=100.0, ray_cols=4, ray_rows=4, min_range_m=0.5)
     q = np.array([[0.0, 0.0, 1.0, np.pi / 2]])
     rays = pose_rays(q, MODEL, cfg)[0]
     hit = first_occupied(m, q[:, :3], rays[None], cfg.max_range_m)[0]
@@ -77,3 +77,19 @@ def test_first_occupied_stops_at_unobserved():
     assert first_occupied(m, o, d, 5.0)[0, 0] == np.ravel_multi_index((20, 5, 5), m.state.shape)
     m.state[10, 5, 5] = 0  # an unobserved voxel in front hides it
     assert first_occupied(m, o, d, 5.0)[0, 0] == -1
+
+
+def test_geometry_inside_the_near_limit_costs_one():
+    """The wall at y = 1.55 seen from 1.25 m away costs ψ (< 1); from 0.45 m away, inside
+    the 1 m near limit, every ray costs 1; without the limit the close view costs ψ too."""
+    m = wall_map(np.array([1.0, 0.0, 0.0]), lam=0.01)
+    cfg = NBVConfig(gamma=0.5, ray_cols=8, ray_rows=6, min_range_m=1.0)
+    far, close = np.array([0.0, 0.3, 1.0, np.pi / 2]), np.array([0.0, 1.1, 1.0, np.pi / 2])
+    c = view_costs(m, np.array([far, close]), MODEL, cfg)
+    assert c[0] < 0.5 and c[1] == pytest.approx(1.0)
+    assert view_costs(m, close[None], MODEL, NBVConfig(gamma=0.5, ray_cols=8, ray_rows=6,
+                                                      min_range_m=0.0))[0] < 0.5
+    rays = pose_rays(np.array([far, close]), MODEL, cfg)
+    hit = first_occupied(m, np.array([far, close])[:, :3], rays, cfg.max_range_m)
+    near = too_near(m, np.array([far, close])[:, :3], hit, cfg.min_range_m)
+    assert not near[0].any() and near[1][hit[1] >= 0].all()

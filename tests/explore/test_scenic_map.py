@@ -2,6 +2,7 @@
 lookup with information-form fusion, free-space carving, triangulation covariances."""
 
 import numpy as np
+import pytest
 
 from explore.scenic_map import EMPTY, OCCUPIED, UNOBSERVED, MapConfig, ScenicMap
 from explore.scenic_pose import CameraModel, camera_at
@@ -59,18 +60,25 @@ def test_triangulation_covariance_matches_monte_carlo():
     assert abs(np.dot(v_c[:, -1], v_e[:, -1])) > 0.99  # the same main axis (the depth)
 
 
-def test_reconstructed_pair_lies_on_the_true_surface(office):
-    """Triangulated SIFT matches of two office photos: most within 5 cm of the mesh, and
-    the predicted uncertainty is larger for the farther points."""
+@pytest.mark.parametrize("matcher,qb,at_least,inliers", [
+    ("sift", [0.5, -2.0, 1.2, np.pi / 2], 100, 0.8),
+    ("dense", [0.5, -2.0, 1.2, np.pi / 2], 1500, 0.8),
+    ("dense", [0.0, -1.5, 1.2, np.pi / 2 + 0.4], 100, 0.65),  # forward motion and a 23° turn
+])
+def test_reconstructed_pair_lies_on_the_true_surface(office, matcher, qb, at_least, inliers):
+    """Triangulated matches of two office photos (sparse SIFT, or dense bidirectional flow
+    after rotation compensation): most within 5 cm of the mesh, and the predicted
+    uncertainty is larger for the farther points."""
     import trimesh
 
     model = CameraModel(320, 240, 60.0)
-    qa, qb = np.array([0, -2.0, 1.2, np.pi / 2]), np.array([0.5, -2.0, 1.2, np.pi / 2])
-    A, B = camera_at(qa, model), camera_at(qb, model)
-    X, cov = reconstruct_pair(A, B, office.photograph(A), office.photograph(B), StereoConfig())
-    assert len(X) > 100
+    qa = np.array([0, -2.0, 1.2, np.pi / 2])
+    A, B = camera_at(qa, model), camera_at(np.array(qb), model)
+    X, cov = reconstruct_pair(A, B, office.photograph(A), office.photograph(B),
+                              StereoConfig(matcher=matcher))
+    assert len(X) > at_least
     _, dist, _ = trimesh.proximity.closest_point(office.mesh, X)
-    assert np.mean(dist < 0.05) > 0.8
+    assert np.mean(dist < 0.05) > inliers
     sd = np.sqrt(np.linalg.eigvalsh(cov)[:, -1])
     depth = np.linalg.norm(X - A.center, axis=1)
     assert np.corrcoef(depth, sd)[0, 1] > 0.5
