@@ -155,6 +155,15 @@ class ViewQuality:
         p["u_tol_abs"] = c.depth_tolerance_m
         p["u_unseen_score"] = c.unseen_score
 
+    def release(self) -> None:
+        """Free this scorer's GL objects (a mission builds a new one per map)."""
+        r = self.renderer
+        attachments = [a for f in r._fbos.values() for a in (*f.color_attachments, f.depth_attachment)]
+        for obj in (self._depth_tex, self._source_buf, self.program, r.vao, r.vbo, r.ibo, r.texture,
+                    r.prog, r.prog_batched, *r._fbos.values(), *attachments):
+            obj.release()
+        r._fbos.clear()
+
     # --- scoring ----------------------------------------------------------------------
     def view_stats(self, clip_from_world: np.ndarray, eyes: np.ndarray) -> np.ndarray:
         """(N, 3) float64 per candidate view: (score (rad), fraction of the view's pixels on

@@ -109,3 +109,13 @@ def test_storage_buffer_path_agrees_with_shared_memory_path(office, proxy, vq, g
     poses = _poses(office, 6, 2)
     np.testing.assert_allclose(vq_ssbo.score_poses(poses, template, forward_mount(1.1)),
                                vq.score_poses(poses, template, forward_mount(1.1)), atol=1e-6)
+
+
+def test_release_frees_gl_objects(proxy, gl_ctx):
+    K = intrinsics_from_fov(60, 80, 60)
+    vq = ViewQuality(proxy, [Camera.look_at((0, 0, 1.2), (0, 3, 1.2), K, 80, 60)], gl_ctx,
+                     ViewQualityConfig(size=SIZE))
+    cam = Camera.look_at((0, 0.2, 1.2), (0, 3, 1.2), intrinsics_from_fov(60, *SIZE), *SIZE)
+    assert vq.score_cameras([cam])[0] < 0.2
+    vq.release()
+    assert gl_ctx.error == "GL_NO_ERROR"
