@@ -110,3 +110,21 @@ def sample_candidates(free: shapely.Geometry, n: int, rng: np.random.Generator,
         xy = rng.uniform(lo, hi, (m, 2))
         out = np.r_[out, xy[shapely.contains_xy(region, xy[:, 0], xy[:, 1])]]
     return np.c_[out[:n], rng.uniform(-np.pi, np.pi, n)]
+
+
+def select_goals(poses: np.ndarray, scores: np.ndarray, k: int, min_separation_m: float = 0.5) -> np.ndarray:
+    """Indices of up to k goals, best (highest score) first, greedily skipping any candidate
+    within min_separation_m (metres, xy) of one already chosen ("we select the views with
+    the best scores, and send the robot to gather more photos at these locations").
+    poses (N, 3) SE(2), scores (N,); non-finite scores are never chosen."""
+    poses = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+    scores = np.asarray(scores, dtype=np.float64)
+    if scores.shape != (len(poses),):
+        raise InputError(f"select_goals: {len(poses)} poses but scores of shape {scores.shape}")
+    chosen: list[int] = []
+    for i in np.argsort(-scores, kind="stable"):
+        if len(chosen) >= k or not np.isfinite(scores[i]):
+            break
+        if all(np.hypot(*(poses[i, :2] - poses[j, :2])) >= min_separation_m for j in chosen):
+            chosen.append(int(i))
+    return np.array(chosen, dtype=int)

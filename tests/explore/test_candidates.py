@@ -8,7 +8,8 @@ import pytest
 import shapely
 import trimesh
 
-from explore.candidates import free_space_from_mesh, free_space_from_slice, sample_candidates, slice_segments
+from explore.candidates import (free_space_from_mesh, free_space_from_slice, sample_candidates, select_goals,
+                                slice_segments)
 from ibr.errors import InputError
 
 
@@ -61,3 +62,13 @@ def test_candidates_inside_eroded_free_space(office, camera_xy):
         sample_candidates(free, 5, np.random.default_rng(0), clearance_m=10.0)
     with pytest.raises(InputError, match="inside_xy"):
         free_space_from_mesh(office.mesh, 1.2, np.zeros((0, 2)))
+
+
+def test_select_goals_best_first_and_spread():
+    poses = np.array([[0, 0, 0], [0.1, 0, 1], [2, 0, 0], [4, 0, 0], [4.2, 0.1, 0]], dtype=float)
+    scores = np.array([1.0, 3.0, 0.5, 2.0, np.nan])
+    np.testing.assert_array_equal(select_goals(poses, scores, 10, 0.5), [1, 3, 2])
+    np.testing.assert_array_equal(select_goals(poses, scores, 2, 0.0), [1, 3])
+    np.testing.assert_array_equal(select_goals(poses, scores, 10, 0.0), [1, 3, 0, 2])
+    with pytest.raises(InputError, match="scores"):
+        select_goals(poses, scores[:3], 2)
