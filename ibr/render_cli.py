@@ -17,6 +17,7 @@ from ibr.camera import Camera, rigid
 from ibr.errors import InputError
 from ibr.eval_ibr import METHODS, EvalConfig, evaluate_scene, make_renderers, proxy_mesh, stderr_progress
 from ibr.scene import Scene, load_scene
+from ibr.ulr import MAX_K
 
 CLI_METHODS = ("ulr", "nearest", "lightfield", "lightfield-local")
 
@@ -56,7 +57,34 @@ def target_cameras(args, scene: Scene) -> list[Camera]:
     return fly_through(scene, args.path, args.frames)
 
 
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
+
+
+def check_render_args(args: argparse.Namespace) -> None:
+    """Reject bad numbers and unwritable outputs before any heavy work (one clear line)."""
+    if not 1 <= args.k <= MAX_K:
+        raise RenderArgsError(f"--k {args.k}: must be in 1..{MAX_K}")
+    if not args.scale > 0:
+        raise RenderArgsError(f"--scale {args.scale}: must be > 0")
+    if args.frames < 1:
+        raise RenderArgsError(f"--frames {args.frames}: must be at least 1")
+    out = Path(args.out)
+    if args.path:
+        if out.exists() and not out.is_dir():
+            raise RenderArgsError(f"--out {out}: with --path this is a folder of frames, but a file is there")
+        if not out.parent.is_dir():
+            raise RenderArgsError(f"--out {out}: parent folder {out.parent} does not exist")
+        return
+    if out.is_dir():
+        raise RenderArgsError(f"--out {out}: is a folder; give an image file name (.png, .jpg, ...)")
+    if out.suffix.lower() not in IMAGE_SUFFIXES:
+        raise RenderArgsError(f"--out {out}: unknown image type; use one of {', '.join(IMAGE_SUFFIXES)}")
+    if not out.parent.is_dir():
+        raise RenderArgsError(f"--out {out}: folder {out.parent} does not exist")
+
+
 def render(args: argparse.Namespace) -> int:
+    check_render_args(args)
     scene = load_scene(args.scene)
     cams = target_cameras(args, scene)
     sources = scene
@@ -94,6 +122,13 @@ def json_safe(x):
 
 
 def eval_ibr(args: argparse.Namespace) -> int:
+    if not 1 <= args.k <= MAX_K:
+        raise RenderArgsError(f"--k {args.k}: must be in 1..{MAX_K}")
+    if args.max_views < 0:
+        raise RenderArgsError(f"--max-views {args.max_views}: must be >= 0")
+    out = Path(args.json)
+    if out.is_dir() or not out.parent.is_dir():
+        raise RenderArgsError(f"--json {out}: not a writable file path (folder missing or a folder given)")
     scene = load_scene(args.scene)
     cfg = EvalConfig(methods=tuple(m.replace("-", "_") for m in args.methods), proxy=args.proxy,
                      max_views=args.max_views, k=args.k)

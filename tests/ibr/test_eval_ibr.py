@@ -69,3 +69,31 @@ def test_bad_inputs_are_named(tmp_path):
         _run("render", SCENE, "--proxy", "mesh", "--from-view", "nope", "--out", tmp_path / "x.png")
     with pytest.raises(InputError, match="camera file not found"):
         _run("render", SCENE, "--proxy", "mesh", "--camera", tmp_path / "missing.camera", "--out", tmp_path / "x.png")
+    bad_camera = tmp_path / "bad.camera"
+    bad_camera.write_text("1 2 3\n")
+    with pytest.raises(InputError, match="bad.camera"):
+        _run("render", SCENE, "--proxy", "mesh", "--camera", bad_camera, "--out", tmp_path / "x.png")
+
+
+@pytest.mark.parametrize("argv, message", [
+    (("--k", 0), "--k 0"),
+    (("--scale", -1), "--scale -1"),
+    (("--out", "{tmp}/x.txt"), "unknown image type"),
+    (("--out", "{tmp}/missing/x.png"), "does not exist"),
+    (("--out", "{tmp}"), "is a folder"),
+])
+def test_bad_render_arguments_fail_before_any_work(tmp_path, argv, message):
+    argv = [str(a).format(tmp=tmp_path) for a in argv]
+    base = {"--out": str(tmp_path / "x.png")}
+    for flag, value in zip(argv[::2], argv[1::2]):
+        base[flag] = value
+    extra = [a for kv in base.items() for a in kv]
+    with pytest.raises(InputError, match=message):
+        _run("render", "/nonexistent/scene", "--from-view", "v", *extra)
+
+
+def test_bad_eval_arguments_fail_before_any_work(tmp_path):
+    with pytest.raises(InputError, match="--json"):
+        _run("eval-ibr", "/nonexistent/scene", "--json", tmp_path / "missing" / "e.json")
+    with pytest.raises(InputError, match="--frames 0"):
+        _run("render", "/nonexistent/scene", "--path", "a", "b", "--frames", 0, "--out", tmp_path / "f")
