@@ -19,7 +19,9 @@ Batching: N candidate views are drawn with one instanced call of the mesh render
 (shaders/view_quality.glsl) scores every pixel of a tile and reduces the tile in shared
 memory (one work group per view); only N x 4 numbers are read back. Sources live in a
 shader storage buffer (projection + centre) and their depth maps in one texture array, so
-hundreds of sources work. `view_quality_numpy` is the same per-pixel computation in numpy
+hundreds of sources work; up to MAX_SHARED_SOURCES of them, each work group first bounds
+its tile's proxy points with a box and copies to shared memory only the sources that may
+see some of it (conservative culling; identical scores, ~1.6x faster on llvmpipe). `view_quality_numpy` is the same per-pixel computation in numpy
 (the reference for tests and the benchmark's baseline).
 
 Frames: world metres; candidate views as GL clip matrices (`Camera.gl_clip_from_world`)
@@ -42,8 +44,8 @@ from localization.pose_views import se2_views
 
 
 MAX_SHARED_SOURCES = 256
-"""Up to this many sources are copied into the work group's shared memory (16 floats
-each); more are read from the storage buffer."""
+"""Up to this many sources are culled per view and copied into the work group's shared
+memory; with more, every source is read from the storage buffer for every pixel."""
 
 
 class ViewQualityError(InputError):
