@@ -104,3 +104,20 @@ def test_single_plane_ghosts_off_the_plane(gl_ctx, wall_scene):
     image, covered = lf.render(virtual)
     lf.release()
     assert psnr(image, truth, covered) < 25.0
+
+
+def test_net_seen_from_behind_keeps_path_neighbours_on_their_sides():
+    """Cameras along a line, the virtual one on the line between two of them (a held-out
+    photo) but turned 20 degrees: from its own centre the left neighbour lies slightly behind
+    it and is mirrored onto the right neighbour's side, both far outside the image (Heigl's
+    net degenerates); projected from 0.3 x the 6 m depth behind it, the left neighbour is
+    left of the image centre and the right one right."""
+    K = intrinsics_from_fov(50, W, H)
+    row = [Camera.look_at((x, 0, 0), (x, 6, 0), K, W, H, up=(0, 0, 1), name=f"r{x}") for x in (-2, -1, 1, 2)]
+    virtual = Camera.look_at((0, 0, 0), (6 * np.tan(np.radians(20)), 6, 0), K, W, H, up=(0, 0, 1))
+    left, right = 1, 2                                  # indices of the neighbours in `row`
+    cx = K[0, 2]
+    heigl = camera_net(virtual, row, extend_to_border=False)
+    assert heigl.pixels[left, 0] > W and heigl.pixels[right, 0] > W   # both mirrored/far right
+    behind = camera_net(virtual, row, extend_to_border=False, eye_back=0.3 * 6.0)
+    assert behind.pixels[left, 0] < cx < behind.pixels[right, 0]
