@@ -70,6 +70,10 @@ class ViewQualityConfig:
     """Score (radians) of a proxy pixel no source sees."""
     empty_score: float = 0.0
     """Score of a candidate view in which the proxy covers no pixel."""
+    background_score: float | None = None
+    """None: the view score is the mean over proxy pixels only (the paper). A number: pixels
+    where the proxy is missing also count, with this score (e.g. pi: a hole in a rough map
+    is unexplored), so the mean is over the whole view."""
     batch: int = 256
     """Candidate views drawn and scored per GPU pass (bounds the atlas size)."""
 
@@ -160,6 +164,7 @@ class ViewQuality:
     def release(self) -> None:
         """Free this scorer's GL objects (a mission builds a new one per map)."""
         r = self.renderer
+        (self.ctx.screen or self.ctx.detect_framebuffer(0)).use()  # never free the bound one
         attachments = [a for f in r._fbos.values() for a in (*f.color_attachments, f.depth_attachment)]
         for obj in (self._depth_tex, self._source_buf, self.program, r.vao, r.vbo, r.ibo, r.texture,
                     r.prog, r.prog_batched, *r._fbos.values(), *attachments):
@@ -282,6 +287,8 @@ def _stats_from_sums(sums, counts, seen, config: ViewQualityConfig, n_px: int | 
     n_px = n_px or config.size[0] * config.size[1]
     m = np.maximum(counts, 1.0)
     score = np.where(counts > 0, sums / m, config.empty_score)
+    if config.background_score is not None:
+        score = (sums + config.background_score * (n_px - counts)) / n_px
     return np.c_[score, counts / n_px, np.where(counts > 0, seen / m, 0.0)]
 
 

@@ -116,6 +116,24 @@ def test_release_frees_gl_objects(proxy, gl_ctx):
     vq = ViewQuality(proxy, [Camera.look_at((0, 0, 1.2), (0, 3, 1.2), K, 80, 60)], gl_ctx,
                      ViewQualityConfig(size=SIZE))
     cam = Camera.look_at((0, 0.2, 1.2), (0, 3, 1.2), intrinsics_from_fov(60, *SIZE), *SIZE)
-    assert vq.score_cameras([cam])[0] < 0.2
+    vq_score = vq.score_cameras([cam])[0]
+    assert vq_score < 0.2
     vq.release()
+    again = ViewQuality(proxy, [Camera.look_at((0, 0, 1.2), (0, 3, 1.2), K, 80, 60)], gl_ctx,
+                        ViewQualityConfig(size=SIZE))  # the context still works
+    assert again.score_cameras([cam])[0] == pytest.approx(vq_score, abs=1e-6)
     assert gl_ctx.error == "GL_NO_ERROR"
+
+
+def test_background_score_counts_missing_proxy(office, gl_ctx):
+    floor_faces = np.all(office.mesh.vertices[office.mesh.faces][:, :, 2] == 0.0, axis=1)
+    floor = trimesh.Trimesh(office.mesh.vertices, office.mesh.faces[floor_faces], process=False)
+    K = intrinsics_from_fov(60, 80, 60)
+    sources = [Camera.look_at((x, -1.0, 1.2), (x, 1.0, 0.0), K, 80, 60) for x in (-1.0, 0.0, 1.0)]
+    cam = Camera.look_at((0.0, -1.5, 1.2), (0.0, 3.0, 1.0), intrinsics_from_fov(60, *SIZE), *SIZE)
+    views = (cam.gl_clip_from_world(0.05, 1000.0)[None], cam.center[None])
+    plain = ViewQuality(floor, sources, gl_ctx, ViewQualityConfig(size=SIZE)).view_stats(*views)[0]
+    holes = ViewQuality(floor, sources, gl_ctx, ViewQualityConfig(size=SIZE, background_score=np.pi))
+    score, frac = holes.score_views(*views)[0], plain[1]
+    assert 0.2 < frac < 0.8  # the floor fills part of the view, the rest is a "hole"
+    assert score == pytest.approx(frac * plain[0] + (1 - frac) * np.pi, abs=1e-6)
