@@ -67,6 +67,15 @@ class NavGrid:
         ij = np.asarray(ij, dtype=np.float64)
         return self.origin + (ij[..., ::-1] + 0.5) * self.cell_m
 
+    def cost_at(self, xy: np.ndarray) -> np.ndarray:
+        """K at world points (..., 2) metres, inf outside the grid (e.g. to drop candidate
+        goals that stand on furniture below the camera plane: cost_at(xy) <= max_cost)."""
+        ij = self.world_to_cell(xy)
+        ok = self.in_bounds(ij)
+        out = np.full(ok.shape, np.inf)
+        out[ok] = self.cost[ij[ok][..., 0], ij[ok][..., 1]]
+        return out
+
     def in_bounds(self, ij: np.ndarray) -> np.ndarray:
         """Bool (...,) true for cells (..., 2) inside the grid."""
         ij = np.asarray(ij)

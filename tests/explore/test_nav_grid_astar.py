@@ -112,6 +112,8 @@ def test_nav_grid_cost_peaks_at_point_cluster():
     xy = np.array([[0.31, -1.7], [-2.99, 3.99]])
     assert np.all(np.abs(grid.cell_to_world(grid.world_to_cell(xy)) - xy) <= grid.cell_m / 2 + 1e-12)
     assert grid.in_bounds(grid.world_to_cell(np.array([[0, 0], [3.5, 0]]))).tolist() == [True, False]
+    at = grid.cost_at(np.array([[1.0, -0.5], [-2.0, 3.0], [9.0, 0.0]]))
+    assert at[0] > 0.8 and at[1] == 0.0 and at[2] == np.inf
 
 
 def test_kde_is_separable_gaussian_eq1():
