@@ -62,16 +62,24 @@ def astar(cost: np.ndarray, start, goal, cost_weight: float = 10.0) -> np.ndarra
     H, W = cost.shape
     si, sj = _cell(start, cost.shape, "start")
     gi, gj = _cell(goal, cost.shape, "goal")
-    mult = (1.0 + cost_weight * cost).ravel().tolist()  # blocked cells: inf
-    s, g = si * W + sj, gi * W + gj
+    # pad with a ring of blocked cells: no bounds checks; node = (i + 1) * P + (j + 1)
+    P = W + 2
+    padded = np.full((H + 2, P), np.inf)
+    padded[1:-1, 1:-1] = 1.0 + cost_weight * cost
+    mult = padded.ravel().tolist()
+    I, J = np.divmod(np.arange(padded.size), P)
+    h = np.hypot(I - (gi + 1), J - (gj + 1)).tolist()  # Euclidean heuristic, cells
+    s, g = (si + 1) * P + sj + 1, (gi + 1) * P + gj + 1
     if not math.isfinite(mult[g]):
         return None
-    best = [math.inf] * (H * W)
-    parent = [-1] * (H * W)
-    closed = bytearray(H * W)
+    # (offset, step length, offsets of the two cells a diagonal passes between)
+    moves = [(di * P + dj, math.hypot(di, dj), di * P, dj) for di, dj in MOVES]
+    best = [math.inf] * len(mult)
+    parent = [-1] * len(mult)
+    closed = bytearray(len(mult))
     best[s] = 0.0
-    heap = [(math.hypot(si - gi, sj - gj), 0.0, s)]
-    hypot, isfinite, push, pop = math.hypot, math.isfinite, heapq.heappush, heapq.heappop
+    heap = [(h[s], 0.0, s)]
+    inf, push, pop = math.inf, heapq.heappush, heapq.heappop
     while heap:
         _, d, u = pop(heap)
         if closed[u]:
@@ -79,31 +87,24 @@ def astar(cost: np.ndarray, start, goal, cost_weight: float = 10.0) -> np.ndarra
         if u == g:
             break
         closed[u] = 1
-        ui, uj = divmod(u, W)
-        for di, dj in MOVES:
-            vi, vj = ui + di, uj + dj
-            if not (0 <= vi < H and 0 <= vj < W):
-                continue
-            v = vi * W + vj
+        for off, step, side_i, side_j in moves:
+            v = u + off
             m = mult[v]
-            if closed[v] or not isfinite(m):
+            if m == inf or closed[v]:
                 continue
-            if di and dj:  # diagonal: no cutting the corner of a blocked cell
-                if not (isfinite(mult[ui * W + vj]) and isfinite(mult[vi * W + uj])):
-                    continue
-                nd = d + SQRT2 * m
-            else:
-                nd = d + m
+            if side_i and side_j and (mult[u + side_i] == inf or mult[u + side_j] == inf):
+                continue  # diagonal: no cutting the corner of a blocked cell
+            nd = d + step * m
             if nd < best[v]:
                 best[v] = nd
                 parent[v] = u
-                push(heap, (nd + hypot(vi - gi, vj - gj), nd, v))
-    if best[g] == math.inf:
+                push(heap, (nd + h[v], nd, v))
+    if best[g] == inf:
         return None
     path = [g]
     while path[-1] != s:
         path.append(parent[path[-1]])
-    return np.array([divmod(v, W) for v in reversed(path)], dtype=int)
+    return np.array([divmod(v, P) for v in reversed(path)], dtype=int) - 1
 
 
 def path_cost(cost: np.ndarray, cells: np.ndarray, cost_weight: float = 10.0) -> float:
