@@ -157,7 +157,7 @@ def run_phase2(args, mesh, plan, renderer, height, views_xy, rng, vv) -> list[di
     p2cfg = Phase2Config(min_range_m=args.min_range, max_range_m=args.max_range,
                          max_grazing_rad=np.deg2rad(args.grazing), threshold=args.threshold,
                          max_views=args.max_nbv, sensor_height_m=height,
-                         candidate_stride=args.candidate_stride)
+                         candidate_stride=args.candidate_stride, ray_backend=args.ray_backend)
     candidates = ground_candidates(grid, plan.free_space, p2cfg)
     _progress(f"Phase II: {len(candidates)} potential views, threshold {args.threshold}")
 
@@ -201,6 +201,8 @@ def register(subparsers) -> None:
                    help="Phase II: every n-th ground voxel is a potential view")
     p.add_argument("--threshold", type=int, default=20,
                    help="Phase II stop: best view sees fewer boundary-unseen voxels")
+    p.add_argument("--ray-backend", choices=("embree", "walk"), default="embree",
+                   help="Phase II occlusion test: Embree ray queries or the numpy voxel walk")
     p.add_argument("--max-nbv", type=int, default=10, help="Phase II: at most this many next-best views")
     p.add_argument("--scan-resolution", type=float, default=0.5,
                    help="simulated scanner beam step (deg)")

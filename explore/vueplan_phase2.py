@@ -20,7 +20,11 @@ centre to p (Sec. 3.2.2-3.2.4)
     neighbour, the estimated surface normal) within the maximum grazing angle; this also
     prunes every view in the half-space behind the exposed faces,
   * crosses no seen-occupied and no unseen voxel (besides u itself).
-Rays are walked for all (u, p) pairs at once, in chunks (`voxel_grid.segments_clear`).
+The occlusion test runs for all surviving (u, p) pairs at once, in chunks, either as one
+Embree occlusion query per ray against the mesh of blocked/open voxel faces
+(`voxel_occlusion.VoxelOccluder`, the default) or as a numpy voxel walk vectorised over
+the rays (`voxel_grid.segments_clear`); never a Python loop per ray. The two agree except
+for rays through a voxel edge or corner (ties), which Embree counts as blocked.
 """
 
 from __future__ import annotations
@@ -36,6 +40,7 @@ from scipy.spatial import cKDTree
 
 from explore.voxel_grid import (EMPTY, FACE_NORMALS, OCCUPIED, UNSEEN, VoxelGrid, blocker_distance,
                                 boundary_unseen, insert_scan, segments_clear)
+from explore.voxel_occlusion import VoxelOccluder
 
 
 @dataclass(frozen=True)
@@ -59,7 +64,14 @@ class Phase2Config:
     candidate_clearance_m: float = 0.3
     """Potential views stand at least this far from the 2-D map's obstacles (metres)."""
     pairs_per_chunk: int = 1_000_000
-    """(voxel, view) rays walked per vectorised batch (memory bound)."""
+    """(voxel, view) rays tested per vectorised batch (memory bound)."""
+    ray_backend: str = "embree"
+    """Occlusion test: "embree" (compiled ray queries against the blocked voxel faces) or
+    "walk" (numpy Amanatides-Woo walk with a distance-field skip)."""
+
+    def __post_init__(self):
+        if self.ray_backend not in ("embree", "walk"):
+            raise ValueError(f"ray_backend must be 'embree' or 'walk', got {self.ray_backend!r}")
 
 
 def ground_candidates(grid: VoxelGrid, free_space: shapely.Geometry, cfg: Phase2Config) -> np.ndarray:
@@ -89,14 +101,19 @@ def count_visible(grid: VoxelGrid, views: np.ndarray, cfg: Phase2Config,
     """(P,) number of boundary-unseen voxels visible from each view (P, 3) world metres
     under the occlusion, range and grazing-angle constraints; 0 for unusable views.
     `stats`, when given, receives "pairs" (voxel, view pairs considered) and "rays"
-    (rays walked after the range / grazing / half-space pruning)."""
+    (rays tested for occlusion after the range / grazing / half-space pruning)."""
     idx, faces = boundary_unseen(grid) if frontier is None else frontier
     counts = np.zeros(len(views), np.int64)
     ok_view = np.flatnonzero(usable_views(grid, views))
     if len(idx) == 0 or len(ok_view) == 0:
         return counts
     blocked = grid.state != EMPTY  # occupied and unseen both block
-    dist = blocker_distance(blocked)
+    if cfg.ray_backend == "embree":
+        occluder = VoxelOccluder(blocked)
+        clear_fn = occluder.clear
+    else:
+        dist = blocker_distance(blocked)
+        clear_fn = lambda a, b: segments_clear(blocked, a, b, dist)  # noqa: E731
     u_c = grid.centers(idx)                      # (m, 3)
     v_c = views[ok_view]                         # (p, 3)
     cos_max = np.cos(cfg.max_grazing_rad)
@@ -115,7 +132,7 @@ def count_visible(grid: VoxelGrid, views: np.ndarray, cfg: Phase2Config,
             stats["rays"] = stats.get("rays", 0) + len(ui)
         if len(ui) == 0:
             continue
-        clear = segments_clear(blocked, grid.to_voxel(u_c[s + ui]), grid.to_voxel(v_c[pj]), dist)
+        clear = clear_fn(grid.to_voxel(u_c[s + ui]), grid.to_voxel(v_c[pj]))
         counts[ok_view] += np.bincount(pj[clear], minlength=len(v_c))
     return counts
 
