@@ -1,4 +1,4 @@
-"""`ibrnav demo`: a robot drives a loop through synthetic:office while its camera images,
+"""`ibrnav drive`: a robot drives a loop through synthetic:office while its camera images,
 sensor readings, pose (true, for a simulated robot), pose estimate and the map stream to
 rerun. `--robot sim` (default) simulates it; `--robot nxt:PORT` drives a LEGO NXT on a
 serial port (`nxt:emulator`: the built-in NXT emulator). `--session DIR` writes every
@@ -61,7 +61,7 @@ def open_robot(args: argparse.Namespace, world, start: np.ndarray):
         yield stack.enter_context(NXTRobot(port, NXTRobotConfig(image_size=(args.width, args.height)), source))
 
 
-def demo(args: argparse.Namespace) -> int:
+def drive(args: argparse.Namespace) -> int:
     world = make_world("office", args.seed)
     route = loop_route(world)
     start = np.array([*route[0], 0.0])
@@ -72,7 +72,7 @@ def demo(args: argparse.Namespace) -> int:
         if args.session:
             session = stack.enter_context(CaptureSession.open_or_create(
                 args.session, robot.intrinsics, robot.image_size, robot.cam_from_robot,
-                meta={"command": "demo", "world": "office", "seed": args.seed, "laps": args.laps,
+                meta={"command": "drive", "world": "office", "seed": args.seed, "laps": args.laps,
                       "robot": "sim" if sim else "nxt"}, rollback=True))
             if session.last_commit is not None:
                 print(f"resuming {args.session} after leg {session.last_commit['step'] + 1} "
@@ -82,7 +82,7 @@ def demo(args: argparse.Namespace) -> int:
         else:
             legs = ((leg, robot.capture()) for leg in follow_waypoints(
                 robot, waypoints, start, follower, np.random.default_rng(args.seed + 1)))
-        ibr_viz.rerun_setup(args, "ibrnav_demo", "ibrnav_demo.rrd")
+        ibr_viz.rerun_setup(args, "ibrnav_drive", "ibrnav_drive.rrd")
         ibr_viz.log_mesh("world/map/mesh", world.mesh)
         explore_viz.log_floor_plan(world.free_space)
         explore_viz.log_path(route, static=True)
@@ -101,7 +101,7 @@ def demo(args: argparse.Namespace) -> int:
             n_bumps += leg.motion.blocked
             n_legs += 1
             if leg.index % 10 == 0:
-                print(f"[demo] leg {leg.index + 1}: heading for waypoint {leg.waypoint + 1}/"
+                print(f"[drive] leg {leg.index + 1}: heading for waypoint {leg.waypoint + 1}/"
                       f"{len(waypoints)}, {photo.index + 1} photos, "
                       f"{time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
         ibr_viz.rerun_teardown(args)
@@ -114,7 +114,7 @@ def demo(args: argparse.Namespace) -> int:
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("demo", help="a robot drives a loop in synthetic:office, recorded to rerun")
+    p = subparsers.add_parser("drive", help="a robot drives a loop in synthetic:office, recorded to rerun")
     p.add_argument("--seed", type=int, default=0, help="world and noise seed")
     p.add_argument("--laps", type=int, default=1, help="times round the loop")
     p.add_argument("--max-legs", type=int, default=400, help="stop after this many legs")
@@ -127,4 +127,4 @@ def register(subparsers) -> None:
     p.add_argument("--session", default=None, help="capture-session folder: every photo, reading and estimate "
                    "is written there as it happens; an interrupted session resumes")
     ibr_viz.add_rerun_args(p)
-    p.set_defaults(func=demo)
+    p.set_defaults(func=drive)

@@ -56,7 +56,7 @@ class ExplorationPhoto:
     path_m: float
 
 
-class _Body:
+class Body:
     """The robot with its dead reckoning and odometer: every move updates both."""
 
     def __init__(self, robot: Robot, start_pose: np.ndarray):
@@ -79,7 +79,7 @@ def _steps_per_circle(config: RandomExplorationConfig) -> int:
     return max(1, int(round(2 * np.pi / config.circle_step_rad)))
 
 
-def drive_with_bumps(body: _Body, distance_m: float, config: RandomExplorationConfig,
+def drive_with_bumps(body: Body, distance_m: float, config: RandomExplorationConfig,
                      rng: np.random.Generator) -> None:
     """Drive `distance_m` straight; on a collision back up, turn a random angle and drive
     the rest, at most `max_bumps_per_drive` times."""
@@ -96,11 +96,13 @@ def drive_with_bumps(body: _Body, distance_m: float, config: RandomExplorationCo
 
 def random_exploration(robot: Robot, start_pose: np.ndarray,
                        config: RandomExplorationConfig = RandomExplorationConfig(),
-                       rng: np.random.Generator | None = None) -> Iterator[ExplorationPhoto]:
+                       rng: np.random.Generator | None = None, body: Body | None = None
+                       ) -> Iterator[ExplorationPhoto]:
     """Run the random exploration with `robot` from the known `start_pose` (3,), yielding
-    each photo as it is taken, until `config.n_photos` photos."""
+    each photo as it is taken, until `config.n_photos` photos. `body`: the robot with its
+    dead reckoning, to keep using after this stage (made here when None)."""
     rng = rng or np.random.default_rng(0)
-    body = _Body(robot, start_pose)
+    body = body or Body(robot, start_pose)
     n, circle, per_circle = 0, 0, _steps_per_circle(config)
     while n < config.n_photos:
         readings = []  # (compass heading, ultrasonic range) per photo of the circle
@@ -112,6 +114,8 @@ def random_exploration(robot: Robot, start_pose: np.ndarray,
             yield ExplorationPhoto(photo, body.est.pose.copy(), circle, body.bumps, body.path_m)
             body.bumps = 0
             n += 1
+            if n >= config.n_photos:
+                return  # the robot stays where its last photo was taken
             if k < per_circle - 1:
                 body.move(turn=config.circle_step_rad)
         best_heading = max(readings, key=lambda r: r[1])[0]

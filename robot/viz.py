@@ -35,3 +35,27 @@ def log_photo(photo: Photo, K: np.ndarray, size: tuple[int, int], cam_from_robot
 def log_sensors(photo: Photo) -> None:
     rr.log("plots/ultrasonic_m", rr.Scalars(photo.range_m))
     rr.log("plots/compass_deg", rr.Scalars(np.degrees(photo.compass_rad)))
+
+
+def log_posed_photo(camera: Camera, path_root: str = "world/cameras") -> None:
+    """A photo's camera where the map put it (frustum only; the image is at world/robot/camera)."""
+    log_camera(f"{path_root}/{camera.name}", camera)
+
+
+def log_robot_map(points: np.ndarray, colors: np.ndarray, mesh) -> None:
+    """The robot's current map: `world/map/points` and `world/map/mesh` (replaced per rebuild)."""
+    from ibr.viz import log_mesh, log_points
+
+    log_points("world/map/points", points, colors, static=False)
+    log_mesh("world/map/mesh", mesh, static=False)
+
+
+def log_coverage(n_photos: int, coverage: float) -> None:
+    """plots/coverage: fraction of the true surface covered after `n_photos` photos."""
+    rr.log("plots/coverage", rr.Scalars(float(coverage)))
+    rr.log("plots/photos", rr.Scalars(float(n_photos)))
+
+
+def log_tour_frame(camera: Camera, image: np.ndarray) -> None:
+    """One frame of the virtual tour at `world/tour/camera`."""
+    log_camera("world/tour/camera", camera, image)

@@ -37,18 +37,18 @@ def test_nxt_mission_writes_a_session_that_loads_as_a_scene(tmp_path):
     assert kinds[0] == "start" and kinds.count("commit") == kinds.count("photo") == 5
 
 
-def test_demo_drives_the_emulated_nxt_into_a_session(tmp_path):
+def test_drive_drives_the_emulated_nxt_into_a_session(tmp_path):
     import subprocess
     import sys
     from pathlib import Path
 
     ibrnav = str(Path(sys.executable).parent / "ibrnav")
-    run = subprocess.run([ibrnav, "demo", "--robot", "nxt:emulator", "--max-legs", "3", "--width", "32",
+    run = subprocess.run([ibrnav, "drive", "--robot", "nxt:emulator", "--max-legs", "3", "--width", "32",
                           "--height", "24", "--session", str(tmp_path / "s"), "--save", str(tmp_path / "d.rrd")],
                          capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr
     assert "3 photos" in run.stdout
     assert len(load_session_scene(tmp_path / "s")) == 3
-    bad = subprocess.run([ibrnav, "demo", "--robot", "nxt:" + str(tmp_path / "rfcomm0"), "--photos", str(tmp_path),
+    bad = subprocess.run([ibrnav, "drive", "--robot", "nxt:" + str(tmp_path / "rfcomm0"), "--photos", str(tmp_path),
                           "--save", str(tmp_path / "e.rrd")], capture_output=True, text=True, timeout=300)
     assert bad.returncode == 2 and "rfcomm0" in bad.stderr and "Traceback" not in bad.stderr

@@ -1,4 +1,4 @@
-"""A simulated capture mission (`ibrnav demo --session`) killed mid-write and resumed ends
+"""A simulated capture mission (`ibrnav drive --session`) killed mid-write and resumed ends
 with exactly the photos and log records of an uninterrupted run with the same seed."""
 
 import os
@@ -17,7 +17,7 @@ from robot.sim_robot import SimRobot, SimRobotConfig
 from robot.waypoint_follower import FollowerConfig
 
 BIN = Path(sys.executable).parent
-DEMO = ["demo", "--seed", "3", "--max-legs", "4", "--width", "32", "--height", "24"]
+DEMO = ["drive", "--seed", "3", "--max-legs", "4", "--width", "32", "--height", "24"]
 
 
 def demo(session: Path, env: dict | None = None) -> subprocess.CompletedProcess:

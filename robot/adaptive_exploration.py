@@ -1,0 +1,414 @@
+"""Adaptive exploration: the second stage of Foster, Wang & Grupen's scene capture (IV-B, IV-C).
+
+From the map of the photos so far (`robot.initial_map`), each round:
+1. slices the mesh at the camera height for the free-space boundary and samples random
+   candidate poses inside it (`explore.candidates`);
+2. scores all candidates in one batched pass of the rendering-quality heuristic
+   (`explore.view_quality.ViewQuality`: mean smallest angle between a pixel's desired ray
+   and the rays to the source photos that see its point; higher = more to gain);
+3. picks the best goals (greedy, spread apart) and stops when the best score is below
+   `AdaptiveConfig.min_gain_rad`;
+4. drives to each goal: a KDE navigation grid from the above-ground map points, A* and path
+   simplification (`explore.nav_grid`, `explore.path_simplify`); the robot follows the path by
+   target-node switching within `switch_m`, on compass-aided dead reckoning between nodes and
+   *vision* at the nodes (SIFT + RANSAC PnP against the map, `localization.feature_localizer`):
+   the plan consumes the localiser's estimate, never a simulator's truth. On an obstacle it
+   backs off, drives a little off the path and re-plans; after `max_obstacles` obstacles it
+   gives the goal up and takes the next;
+5. photographs at each goal, localises those photos, and rebuilds the map with them
+   (triangulation with the localised poses fixed, Poisson mesh).
+
+Algorithm code only: what happens is reported to a `MissionObserver` (the CLI turns it into
+rerun logs and progress lines). Frames: world SE(2) poses (x, y, theta), metres, radians.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from explore.candidates import free_space_from_mesh, sample_candidates
+from explore.nav_grid import NavGridConfig, nav_grid_from_points
+from explore.path_simplify import plan_path
+from explore.view_quality import ViewQuality, ViewQualityConfig
+from ibr.camera import Camera
+from ibr.errors import InputError
+from ibr.triangulation import TriangulationConfig
+from localization.feature_localizer import FeatureLocalizerConfig, FeatureMap
+from localization.motion_models import wrap_angle
+from robot.initial_map import MapConfig, RobotMap, extend_map, initial_map, pair_tracks, stereo_pairs
+from robot.protocol import Photo, Robot, robot_camera
+from robot.random_exploration import Body, RandomExplorationConfig, random_exploration
+
+
+@dataclass(frozen=True)
+class AdaptiveConfig:
+    """Settings of the adaptive exploration."""
+
+    n_candidates: int = 300
+    """Random candidate poses scored per round."""
+    clearance_m: float = 0.35
+    """Candidates keep this distance from the free-space boundary (m)."""
+    goals_per_round: int = 6
+    """Goals visited between two map rebuilds."""
+    goal_separation_m: float = 0.8
+    """Two goals of a round are at least this far apart, or differ by 60 degrees in heading (m)."""
+    photos_per_goal: int = 2
+    """Photos taken at a goal: the goal view, then side-stepped copies (stereo baselines)."""
+    stereo_baseline_m: float = 0.4
+    """Side step between the photos of a goal (m): 0.4 m is 5 degrees of parallax at 4.5 m."""
+    min_gain_rad: float = 0.05
+    """Stop when the best candidate's score (mean angle, rad) is below this."""
+    max_rounds: int = 6
+    """Most rounds of goal selection and map rebuilding."""
+    switch_m: float = 0.3
+    """Target-node switching: a path node within this distance counts as passed (m)."""
+    reach_m: float = 0.15
+    """The goal counts as reached within this distance (m)."""
+    leg_m: float = 0.6
+    """Longest straight drive on dead reckoning before re-aiming (m)."""
+    max_obstacles: int = 5
+    """Obstacles on the way to a goal after which it is given up (the paper's k = 5)."""
+    backoff_m: float = 0.2
+    """How far to back up from an obstacle (m)."""
+    off_path_m: float = 0.3
+    """How far to drive off the path after an obstacle before re-planning (m)."""
+    max_legs_per_goal: int = 40
+    """Legs after which a goal is given up (a planner or localisation fault never loops forever)."""
+    max_path_cost: float = 0.35
+    """Grid cells with a (normalised) KDE cost above this are blocked for A*."""
+    max_fix_jump_m: float = 1.0
+    """A PnP fix farther than this from the dead-reckoning estimate is rejected (m)."""
+    max_fix_height_err_m: float = 0.15
+    """A PnP fix whose camera height is off by more than this is rejected (m)."""
+    grid: NavGridConfig = field(default_factory=lambda: NavGridConfig(z_floor_margin=0.08, z_max=1.2))
+    """Navigation grid (KDE of above-ground points)."""
+    view_quality: ViewQualityConfig = field(default_factory=ViewQualityConfig)
+    """Rendering-quality heuristic."""
+    localizer: FeatureLocalizerConfig = field(default_factory=lambda: FeatureLocalizerConfig(
+        triangulation=TriangulationConfig(n_features=1500, neighbours=6, max_epipolar_px=3.0,
+                                          max_reprojection_px=3.0), query_features=1500, min_inliers=12))
+    """SIFT + RANSAC PnP localiser against the map (its map's features are cached per photo)."""
+    map: MapConfig = field(default_factory=MapConfig)
+    """Map building (SfM, triangulation, Poisson)."""
+
+
+@dataclass
+class MissionPhoto:
+    """A photo of the mission: `photo`; `estimate` (3,) the robot's pose estimate when it was
+    taken; `stage` "random", "goal" or "localise" (taken to localise, not part of the model);
+    `camera` its posed camera once SfM or PnP posed it (None: unposed)."""
+
+    photo: Photo
+    estimate: np.ndarray
+    stage: str
+    camera: Camera | None = None
+
+
+class MissionObserver:
+    """What the mission reports; every method does nothing here (subclass to log)."""
+
+    def photo(self, mp: MissionPhoto) -> None: ...
+    def estimate(self, pose: np.ndarray, source: str) -> None: ...
+    def map(self, robot_map: RobotMap, free_space) -> None: ...
+    def candidates(self, poses: np.ndarray, scores: np.ndarray, goals: np.ndarray) -> None: ...
+    def grid(self, grid) -> None: ...
+    def path(self, xy: np.ndarray) -> None: ...
+    def progress(self, text: str) -> None: ...
+
+
+@dataclass
+class MissionResult:
+    """photos: every photo in order; robot_map: the final map; path_m: distance driven (m,
+    odometry); rounds: adaptive rounds run; goals: (G, 3) goals reached; given_up: goals
+    abandoned; fixes/failed_fixes: PnP localisations accepted / failed or rejected;
+    stop_reason: why the adaptive stage ended."""
+
+    photos: list[MissionPhoto]
+    robot_map: RobotMap | None
+    path_m: float = 0.0
+    rounds: int = 0
+    goals: list = field(default_factory=list)
+    given_up: int = 0
+    fixes: int = 0
+    failed_fixes: int = 0
+    stop_reason: str = ""
+
+    @property
+    def model_photos(self) -> list[MissionPhoto]:
+        """The photos of the model (random + goal; not those taken only to localise)."""
+        return [p for p in self.photos if p.stage != "localise"]
+
+
+def pick_goals(poses: np.ndarray, scores: np.ndarray, k: int, separation_m: float) -> np.ndarray:
+    """Indices of up to `k` best-scoring poses (N, 3), each at least `separation_m` from, or
+    60 degrees in heading away from, every better one picked."""
+    chosen: list[int] = []
+    for i in np.argsort(-scores):
+        if len(chosen) == k:
+            break
+        if all(np.hypot(*(poses[i, :2] - poses[j, :2])) >= separation_m
+               or abs(wrap_angle(poses[i, 2] - poses[j, 2])) >= np.radians(60) for j in chosen):
+            chosen.append(int(i))
+    return np.array(chosen, dtype=int)
+
+
+class AdaptiveMission:
+    """The adaptive stage's state: the robot and its dead reckoning (`body`), the photos, the
+    map and the localiser. `run_mission` drives it; the methods are its steps."""
+
+    def __init__(self, robot: Robot, body: Body, photos: list[MissionPhoto], robot_map: RobotMap,
+                 config: AdaptiveConfig, rng: np.random.Generator, observer: MissionObserver):
+        self.robot, self.body, self.photos, self.map = robot, body, photos, robot_map
+        self.config, self.rng, self.obs = config, rng, observer
+        w, h = robot.image_size
+        self.template = Camera(robot.intrinsics, w, h, np.eye(4))
+        self.cam_height = float(np.linalg.inv(robot.cam_from_robot)[2, 3])
+        self._features: dict[int, object] = {}
+        self.fixes = self.failed = self.given_up = 0
+        self.goals_reached: list[np.ndarray] = []
+        self.fmap = self._feature_map()
+
+    # --- localisation -------------------------------------------------------------------
+    def _feats(self, i: int):
+        from ibr.triangulation import sift_features
+
+        if i not in self._features:
+            self._features[i] = sift_features(self.photos[i].photo.image, self.config.localizer.triangulation.n_features)
+        return self._features[i]
+
+    def _feature_map(self) -> FeatureMap:
+        """SIFT + PnP map of the posed model photos (features cached per photo)."""
+        idx = [i for i, p in enumerate(self.photos) if p.camera is not None and p.stage != "localise"]
+        cams = [self.photos[i].camera for i in idx]
+        tri = self.config.localizer.triangulation
+        pairs = stereo_pairs(cams, tri.neighbours)
+        used = sorted(set(pairs.ravel().tolist()))
+        feats = {k: self._feats(idx[k]) for k in used}
+        pts, _, desc, owner, _ = pair_tracks(cams, [feats.get(k) for k in range(len(cams))], pairs, tri)
+        return FeatureMap(pts, desc, owner, self.config.localizer)
+
+    def pose_of_camera(self, cam_from_world: np.ndarray) -> np.ndarray:
+        """SE(2) robot pose of a camera pose (the mount undone)."""
+        world_from_robot = np.linalg.inv(cam_from_world) @ self.robot.cam_from_robot
+        return np.array([world_from_robot[0, 3], world_from_robot[1, 3],
+                         np.arctan2(world_from_robot[1, 0], world_from_robot[0, 0])])
+
+    def localise_photo(self, photo: Photo) -> Camera | None:
+        """PnP pose of a photo against the map, if it passes the sanity checks."""
+        c = self.config
+        res = self.fmap.localize(photo.image, self.template) if len(self.fmap) >= c.localizer.min_inliers else None
+        if res is not None:
+            centre = np.linalg.inv(res.cam_from_world)[:3, 3]
+            pose = self.pose_of_camera(res.cam_from_world)
+            if (abs(centre[2] - self.cam_height) < c.max_fix_height_err_m
+                    and np.hypot(*(pose[:2] - self.body.est.pose[:2])) < c.max_fix_jump_m):
+                self.fixes += 1
+                return res.camera
+        self.failed += 1
+        return None
+
+    def take_photo(self, stage: str) -> MissionPhoto:
+        """Capture, localise by vision; a good fix replaces the dead-reckoning estimate. A
+        goal photo that cannot be localised is posed at the dead-reckoning estimate."""
+        photo = self.robot.capture()
+        cam = self.localise_photo(photo)
+        fixed = cam is not None
+        if fixed:
+            self.body.est.pose = self.pose_of_camera(cam.cam_from_world)
+        elif stage == "goal":
+            cam = robot_camera(self.body.est.pose, self.robot.intrinsics, self.robot.image_size,
+                               self.robot.cam_from_robot)
+        if cam is not None:
+            cam = cam.with_pose(cam.cam_from_world, name=f"photo_{len(self.photos):05d}")
+        mp = MissionPhoto(photo, self.body.est.pose.copy(), stage, cam)
+        self.photos.append(mp)
+        self.obs.photo(mp)
+        self.obs.estimate(self.body.est.pose, "pnp" if fixed else "odometry")
+        return mp
+
+    # --- goals ----------------------------------------------------------------------------
+    def choose_goals(self) -> tuple[np.ndarray, float, object]:
+        """(goals (G, 3) best first, best score, free space) of this round."""
+        c = self.config
+        cams = [p.camera for p in self.photos if p.camera is not None and p.stage != "localise"]
+        xy = np.array([cam.center[:2] for cam in cams])
+        free = free_space_from_mesh(self.map.mesh, self.cam_height, xy)
+        cand = sample_candidates(free, c.n_candidates, self.rng, c.clearance_m)
+        vq = ViewQuality(self.map.mesh, cams, config=c.view_quality)
+        scores = vq.score_poses(cand, self.template, self.robot.cam_from_robot)
+        vq.renderer.release() if hasattr(vq.renderer, "release") else None
+        pick = pick_goals(cand, scores, c.goals_per_round, c.goal_separation_m)
+        self.obs.map(self.map, free)
+        self.obs.candidates(cand, scores, cand[pick])
+        return cand[pick], float(scores.max(initial=0.0)), free
+
+    def nav_grid(self, free):
+        cams = np.array([p.estimate[:2] for p in self.photos])
+        lo = np.minimum(cams.min(0), np.asarray(free.bounds[:2])) - 0.5
+        hi = np.maximum(cams.max(0), np.asarray(free.bounds[2:])) + 0.5
+        grid = nav_grid_from_points(self.map.points, (*lo, *hi), self.config.grid)
+        self.obs.grid(grid)
+        return grid
+
+    # --- path following -----------------------------------------------------------------------
+    def _aim_and_drive(self, target: np.ndarray):
+        est = self.body.est.pose
+        d = target - est[:2]
+        turn = wrap_angle(np.arctan2(d[1], d[0]) - est[2])
+        if abs(turn) > 1e-3:
+            self.body.move(turn=float(turn))
+        return self.body.move(drive=float(min(self.config.leg_m, np.hypot(*d))))
+
+    def _recover(self, motion) -> None:
+        """Back off an obstacle, turn away and drive a little off the path."""
+        c = self.config
+        self.body.move(drive=c.backoff_m if motion.bumper_rear else -c.backoff_m)
+        self.body.move(turn=float(self.rng.uniform(np.pi / 4, np.pi / 2) * self.rng.choice([-1.0, 1.0])))
+        self.body.move(drive=c.off_path_m)
+
+    def go_to(self, goal: np.ndarray, grid) -> bool:
+        """Drive to goal (3,) on the plan; True when reached."""
+        c = self.config
+        obstacles, legs = 0, 0
+        while obstacles <= c.max_obstacles and legs < c.max_legs_per_goal:
+            path = plan_path(grid, self.body.est.pose[:2], goal[:2], max_cost=c.max_path_cost)
+            if path is None:
+                return False
+            self.obs.path(path)
+            t, blocked = 1, False
+            while t < len(path) and legs < c.max_legs_per_goal:
+                last = t == len(path) - 1
+                if np.hypot(*(path[t] - self.body.est.pose[:2])) < (c.reach_m if last else c.switch_m):
+                    if last:
+                        self.take_photo("localise")  # check the arrival by vision
+                        if np.hypot(*(path[t] - self.body.est.pose[:2])) < c.reach_m + 0.05:
+                            return True
+                        legs += 1
+                        continue
+                    t += 1
+                    self.take_photo("localise")  # vision fix at every path node
+                    continue
+                motion = self._aim_and_drive(path[t])
+                legs += 1
+                if motion.blocked:
+                    obstacles += 1
+                    self._recover(motion)
+                    blocked = True
+                    break
+            if not blocked:
+                return legs < c.max_legs_per_goal
+            self.take_photo("localise")
+        return False
+
+    def _face(self, heading: float) -> None:
+        turn = wrap_angle(heading - self.body.est.pose[2])
+        if abs(turn) > 1e-3:
+            self.body.move(turn=float(turn))
+
+    def capture_at(self, goal: np.ndarray, budget: int) -> list[MissionPhoto]:
+        """A stereo pair at the goal (at most `budget` photos): one photo facing the goal
+        heading, then one after a side step of `stereo_baseline_m` (to the other side when
+        the first is blocked), so what the goal sees is seen from two directions."""
+        c = self.config
+        self._face(goal[2])
+        out = [self.take_photo("goal")]
+        for k in range(1, min(c.photos_per_goal, budget)):
+            side = goal[2] + (np.pi / 2 if k % 2 else -np.pi / 2)
+            self._face(side)
+            motion = self.body.move(drive=c.stereo_baseline_m * k)
+            if motion.blocked:
+                self.body.move(drive=-c.backoff_m)
+            self._face(goal[2])
+            out.append(self.take_photo("goal"))
+        return out
+
+    def rebuild(self, new: list[MissionPhoto]) -> None:
+        """Add the new posed photos to the map and the localiser."""
+        idx = {i: p for i, p in enumerate(self.photos) if p.camera is not None and p.stage != "localise"}
+        new_ids = {i for i, p in idx.items() if any(p is q for q in new)}
+        if not new_ids:
+            return
+        self.map = extend_map(self.map, {i: idx[i].camera for i in new_ids},
+                              {i: p.photo.image for i, p in idx.items()}, self.config.map,
+                              features=self._feats)
+        self.fmap = self._feature_map()
+
+
+def run_mission(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budget: int,
+                config: AdaptiveConfig = AdaptiveConfig(), rng: np.random.Generator | None = None,
+                observer: MissionObserver | None = None,
+                random_config: RandomExplorationConfig | None = None) -> MissionResult:
+    """The whole capture mission: random exploration (`n_random` photos), the initial map,
+    then adaptive rounds until the best candidate's gain is below `config.min_gain_rad`, the
+    model holds `photo_budget` photos, or `config.max_rounds`. `start_pose` (3,) is known."""
+    rng = rng or np.random.default_rng(0)
+    obs = observer or MissionObserver()
+    if n_random > photo_budget:
+        raise InputError(f"{n_random} random photos exceed the photo budget of {photo_budget}")
+    body = Body(robot, start_pose)
+    photos: list[MissionPhoto] = []
+    rcfg = replace(random_config or RandomExplorationConfig(), n_photos=n_random)
+    for shot in random_exploration(robot, start_pose, rcfg, rng, body):
+        photos.append(MissionPhoto(shot.photo, shot.estimate, "random"))
+        obs.photo(photos[-1])
+        obs.estimate(shot.estimate, "odometry")
+        if len(photos) % 10 == 0:
+            obs.progress(f"random exploration: {len(photos)}/{n_random} photos, {body.path_m:.1f} m driven")
+    obs.progress(f"initial map: SfM of {len(photos)} photos")
+    rmap = initial_map([p.photo.image for p in photos], robot.intrinsics, np.array([p.estimate for p in photos]),
+                       np.array([p.photo.compass_rad for p in photos]), robot.cam_from_robot, config.map)
+    for i, cam in rmap.cameras.items():
+        photos[i].camera = cam
+    obs.progress(f"initial map: {rmap.registered}/{len(photos)} photos posed, {len(rmap.points)} points, "
+                 f"{len(rmap.mesh.faces)} faces")
+    result = MissionResult(photos, rmap)
+    mission = AdaptiveMission(robot, body, photos, rmap, config, rng, obs)
+    mission.take_photo("localise")
+    result.stop_reason = "max rounds"
+    for r in range(config.max_rounds):
+        left = photo_budget - len(result.model_photos)
+        if left <= 0:
+            result.stop_reason = "photo budget"
+            break
+        goals, best, free = mission.choose_goals()
+        obs.progress(f"round {r + 1}: best candidate gain {np.degrees(best):.1f} deg, {len(goals)} goals, "
+                     f"{len(result.model_photos)} photos")
+        if best < config.min_gain_rad or len(goals) == 0:
+            result.stop_reason = f"gain {np.degrees(best):.2f} deg below threshold"
+            break
+        grid = mission.nav_grid(free)
+        new = []
+        for g in goals:
+            left = photo_budget - len(result.model_photos)
+            if left <= 0:
+                break
+            if mission.go_to(g, grid):
+                new += mission.capture_at(g, left)
+                mission.goals_reached.append(g)
+            else:
+                mission.given_up += 1
+                obs.progress(f"round {r + 1}: gave up a goal at ({g[0]:.2f}, {g[1]:.2f})")
+        mission.rebuild(new)
+        result.rounds = r + 1
+    result.robot_map, result.path_m = mission.map, body.path_m
+    result.goals, result.given_up = mission.goals_reached, mission.given_up
+    result.fixes, result.failed_fixes = mission.fixes, mission.failed
+    return result
+
+
+def run_random_only(robot: Robot, start_pose: np.ndarray, photo_budget: int,
+                    rng: np.random.Generator | None = None, observer: MissionObserver | None = None,
+                    random_config: RandomExplorationConfig | None = None) -> MissionResult:
+    """The baseline: random exploration for the whole photo budget (no map, no goals)."""
+    obs = observer or MissionObserver()
+    body = Body(robot, start_pose)
+    photos = []
+    rcfg = replace(random_config or RandomExplorationConfig(), n_photos=photo_budget)
+    for shot in random_exploration(robot, start_pose, rcfg, rng or np.random.default_rng(0), body):
+        photos.append(MissionPhoto(shot.photo, shot.estimate, "random"))
+        obs.photo(photos[-1])
+        if len(photos) % 20 == 0:
+            obs.progress(f"random exploration: {len(photos)}/{photo_budget} photos")
+    return MissionResult(photos, None, path_m=body.path_m, stop_reason="photo budget")

@@ -1,0 +1,312 @@
+"""The robot's map from its photos: SfM, alignment to the floor frame, points, normals and a
+Poisson mesh (Foster, Wang & Grupen, sections IV-A end, IV-B "Choosing a goal", IV-C).
+
+`initial_map` poses the random-exploration photos with pycolmap's incremental SfM (the role
+Bundler plays in the paper), made fast for a robot: one shared, known pinhole camera (not
+refined), few SIFT features per small image, exhaustive matching of the (~100) photos.
+COLMAP's frame is arbitrary, so the model is aligned to the robot's floor frame: the camera
+centres' best-fit plane becomes the plane z = camera height (its normal along the cameras'
+up), then a 2-D similarity (Umeyama) takes the centres onto the dead-reckoning positions,
+which gives metric scale from the odometry and heading from the compass.
+
+`extend_map` adds photos whose poses were localised (PnP) later: their SIFT features are
+matched with their neighbours and triangulated with the poses *fixed* (`ibr.triangulation`,
+no bundle adjustment), and the mesh is rebuilt. Frames: world metres, z up, floor z = 0;
+SE(2) robot poses (x, y, theta).
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+import trimesh
+
+from ibr.camera import Camera, rigid
+from ibr.errors import InputError
+from ibr.normals import estimate_normals, remove_outliers
+from ibr.poisson import PoissonConfig, poisson_mesh
+from ibr.triangulation import (TriangulationConfig, fundamental_matrix, match_features, sampson_distance,
+                               sift_features, triangulate_pair)
+
+
+class MapError(InputError):
+    """The photos could not be turned into a map (too few registered, no points)."""
+
+
+@dataclass(frozen=True)
+class MapConfig:
+    """Settings of `initial_map` and `extend_map`."""
+
+    max_features: int = 1500
+    """SIFT features per photo for SfM."""
+    match_heading_rad: float = np.radians(75.0)
+    """Photos are matched only with those whose compass headings differ less than this (rad)."""
+    seed: int = 0
+    """COLMAP's random seed (reproducible maps)."""
+    min_registered: int = 10
+    """Fewest photos SfM must register."""
+    threads: int = 2
+    """Worker threads for feature extraction, matching and mapping."""
+    poisson: PoissonConfig = field(default_factory=lambda: PoissonConfig(depth=7, max_gap_spacing=4.0, threads=1))
+    """Poisson meshing of the oriented points (coarse: the heuristic needs a rough proxy; one
+    thread: its OpenMP threads spin and crawl, 10x, on a busy 2-core machine)."""
+    triangulation: TriangulationConfig = field(
+        default_factory=lambda: TriangulationConfig(n_features=1500, neighbours=4, max_epipolar_px=3.0,
+                                                    max_reprojection_px=3.0, min_angle_deg=2.0))
+    """Triangulation of later photos with their poses fixed."""
+    max_point_range_m: float = 12.0
+    """Points farther than this from every camera are dropped (badly triangulated)."""
+
+
+@dataclass
+class RobotMap:
+    """The map: `cameras` {photo index: Camera in the floor frame}; `points` (N, 3) metres,
+    `colors` (N, 3) uint8, `normals` (N, 3) unit; `mesh` the Poisson proxy; `registered`
+    how many photos SfM posed."""
+
+    cameras: dict[int, Camera]
+    points: np.ndarray
+    colors: np.ndarray
+    normals: np.ndarray
+    mesh: trimesh.Trimesh
+    registered: int = 0
+
+    def poses(self, cam_from_robot: np.ndarray) -> dict[int, np.ndarray]:
+        """SE(2) robot pose (x, y, theta) of each mapped photo (the mount undone)."""
+        out = {}
+        for i, cam in self.cameras.items():
+            world_from_robot = cam.world_from_cam @ cam_from_robot
+            out[i] = np.array([world_from_robot[0, 3], world_from_robot[1, 3],
+                               np.arctan2(world_from_robot[1, 0], world_from_robot[0, 0])])
+        return out
+
+
+def stereo_pairs(cameras: list[Camera], k: int, min_baseline_m: float = 0.25,
+                 max_axis_angle_rad: float = np.radians(40.0)) -> np.ndarray:
+    """(P, 2) index pairs i < j: each camera with its k nearest others among those at least
+    `min_baseline_m` away whose optical axes differ less than `max_axis_angle_rad`. A robot's
+    circles of photos share a centre up to the mount offset, so the plain nearest views
+    (`ibr.triangulation.neighbour_pairs`) would be stereo pairs with no baseline."""
+    C = np.array([c.center for c in cameras]).reshape(-1, 3)
+    F = np.array([c.forward for c in cameras]).reshape(-1, 3)
+    dist = np.linalg.norm(C[:, None] - C[None], axis=2)
+    ang = np.arccos(np.clip(F @ F.T, -1.0, 1.0))
+    score = dist * (1.0 + 2.0 * ang)
+    score[(dist < min_baseline_m) | (ang > max_axis_angle_rad)] = np.inf
+    pairs = {(min(i, j), max(i, j)) for i in range(len(cameras))
+             for j in np.argsort(score[i])[:k] if np.isfinite(score[i, j])}
+    return np.array(sorted(pairs), dtype=int).reshape(-1, 2)
+
+
+def pair_tracks(cameras: list[Camera], feats: list, pairs: np.ndarray, cfg: TriangulationConfig):
+    """Triangulate the epipolar-consistent SIFT matches of the given view `pairs` (P, 2)
+    with the poses fixed. Returns points (N, 3), colours (N, 3) uint8, the two descriptors of
+    each point's features (2N, 128) with their owners (2N,), and the first view of each point."""
+    pts, cols, descs, owners, first = [], [], [], [], []
+    n = 0
+    for i, j in pairs:
+        m = match_features(feats[i], feats[j], cfg.ratio)
+        xa, xb = feats[i].uv[m[:, 0]], feats[j].uv[m[:, 1]]
+        good = np.flatnonzero(sampson_distance(fundamental_matrix(cameras[i], cameras[j]), xa, xb)
+                              < cfg.max_epipolar_px)
+        P, idx = triangulate_pair(cameras[i], cameras[j], xa[good], xb[good], cfg)
+        mi = m[good[idx]]
+        pts.append(P)
+        cols.append(feats[i].colors[mi[:, 0]])
+        descs += [feats[i].descriptors[mi[:, 0]], feats[j].descriptors[mi[:, 1]]]
+        owners += [np.arange(n, n + len(P))] * 2
+        first.append(np.full(len(P), i))
+        n += len(P)
+    if n == 0:
+        return (np.zeros((0, 3)), np.zeros((0, 3), np.uint8), np.zeros((0, 128), np.float32),
+                np.zeros(0, int), np.zeros(0, int))
+    return (np.concatenate(pts), np.concatenate(cols).astype(np.uint8), np.concatenate(descs).astype(np.float32),
+            np.concatenate(owners), np.concatenate(first))
+
+
+# --- SfM -------------------------------------------------------------------------------
+def heading_pairs(headings: np.ndarray, max_diff_rad: float) -> np.ndarray:
+    """(P, 2) index pairs i < j of photos whose compass headings (rad) differ by less than
+    `max_diff_rad`: only they can share SIFT features (opposite views never do)."""
+    d = np.abs(np.angle(np.exp(1j * (headings[:, None] - headings[None]))))
+    i, j = np.nonzero(np.triu(d < max_diff_rad, 1))
+    return np.c_[i, j]
+
+
+def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, config: MapConfig, work: Path):
+    """pycolmap incremental SfM of `images` (H, W, 3) uint8 with the known shared `K`, matching
+    only the photos whose compass `headings` (rad) are within `config.match_heading_rad`.
+    Returns the largest reconstruction."""
+    import pycolmap
+
+    img_dir = work / "images"
+    img_dir.mkdir(parents=True)
+    names = []
+    for i, im in enumerate(images):
+        names.append(f"{i:05d}.png")
+        cv2.imwrite(str(img_dir / names[-1]), im[..., ::-1])
+    h, w = images[0].shape[:2]
+    db = work / "database.db"
+    reader = pycolmap.ImageReaderOptions()
+    reader.camera_model = "PINHOLE"
+    reader.camera_params = ",".join(str(v) for v in (K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5))
+    extract = pycolmap.FeatureExtractionOptions()
+    extract.num_threads, extract.sift.max_num_features = config.threads, config.max_features
+    pycolmap.extract_features(db, img_dir, names, camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader,
+                              extraction_options=extract, device=pycolmap.Device.cpu)
+    matching = pycolmap.FeatureMatchingOptions()
+    matching.num_threads = config.threads
+    pairs = heading_pairs(np.asarray(headings), config.match_heading_rad)
+    (work / "pairs.txt").write_text("".join(f"{names[i]} {names[j]}\n" for i, j in pairs))
+    pycolmap.match_image_pairs(db, matching_options=matching, device=pycolmap.Device.cpu,
+                               pairing_options=pycolmap.ImportedPairingOptions(match_list_path=work / "pairs.txt"))
+    opts = pycolmap.IncrementalPipelineOptions()
+    opts.num_threads, opts.random_seed = config.threads, config.seed
+    opts.mapper.num_threads, opts.mapper.random_seed = config.threads, config.seed
+    opts.ba_refine_focal_length = opts.ba_refine_principal_point = opts.ba_refine_extra_params = False
+    opts.multiple_models = False
+    opts.ba_global_frames_ratio = opts.ba_global_points_ratio = 1.4  # fewer global BAs: ~100 photos
+    opts.ba_global_max_num_iterations, opts.ba_local_max_num_iterations = 30, 15
+    maps = pycolmap.incremental_mapping(db, img_dir, work / "sparse", opts)
+    if not maps:
+        raise MapError(f"SfM registered none of the {len(images)} photos (too little texture or overlap?)")
+    rec = max(maps.values(), key=lambda r: r.num_reg_images())
+    if rec.num_reg_images() < config.min_registered:
+        raise MapError(f"SfM registered only {rec.num_reg_images()} of {len(images)} photos; "
+                       f"need {config.min_registered}")
+    return rec
+
+
+def _umeyama_2d(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """Similarity (s, R 2x2, t) minimising |dst - (s R src + t)|^2 for (N, 2) point sets."""
+    ms, md = src.mean(0), dst.mean(0)
+    a, b = src - ms, dst - md
+    U, S, Vt = np.linalg.svd(b.T @ a / len(src))
+    D = np.diag([1.0, np.sign(np.linalg.det(U @ Vt))])
+    R = U @ D @ Vt
+    s = float(np.trace(np.diag(S) @ D) / max((a ** 2).sum() / len(src), 1e-12))
+    return s, R, md - s * R @ ms
+
+
+def floor_alignment(centres: np.ndarray, ups: np.ndarray, target_xy: np.ndarray,
+                    camera_height_m: float) -> np.ndarray:
+    """4x4 similarity world_from_sfm taking SfM camera `centres` (N, 3) to the floor frame:
+    their best-fit plane to z = `camera_height_m` (normal along the mean camera `ups`), then
+    the 2-D similarity onto `target_xy` (N, 2), the dead-reckoning positions (metres)."""
+    c0 = centres.mean(0)
+    _, _, Vt = np.linalg.svd(centres - c0)
+    n = Vt[2] if np.linalg.matrix_rank(centres - c0, tol=1e-9) >= 2 else ups.mean(0)
+    n = n * np.sign(n @ ups.mean(0))
+    n /= np.linalg.norm(n)
+    x = np.cross([0, 1.0, 0], n) if abs(n[1]) < 0.9 else np.cross([1.0, 0, 0], n)
+    x /= np.linalg.norm(x)
+    level = np.stack([x, np.cross(n, x), n])  # rows: new axes; level @ v puts n on +z
+    p = (centres - c0) @ level.T
+    s, R, t = _umeyama_2d(p[:, :2], target_xy)
+    S = np.eye(4)
+    S[:2, :2], S[:2, 3], S[2, 2], S[2, 3] = s * R, t, s, camera_height_m
+    L = rigid(level, -level @ c0)
+    return S @ L
+
+
+def _transform_camera(cam: Camera, world_from_sfm: np.ndarray) -> Camera:
+    """The camera re-expressed in the floor frame (a similarity: the scale goes into t)."""
+    s = np.cbrt(np.linalg.det(world_from_sfm[:3, :3]))
+    R = world_from_sfm[:3, :3] / s
+    centre = world_from_sfm[:3, :3] @ cam.center + world_from_sfm[:3, 3]
+    world_from_cam = rigid(R @ cam.world_from_cam[:3, :3], centre)
+    return cam.with_pose(np.linalg.inv(world_from_cam))
+
+
+def initial_map(images: list[np.ndarray], K: np.ndarray, estimates: np.ndarray, compass_rad: np.ndarray,
+                cam_from_robot: np.ndarray, config: MapConfig = MapConfig()) -> RobotMap:
+    """The map of the random-exploration photos `images` with shared intrinsics `K`;
+    `estimates` (N, 3) their dead-reckoning SE(2) poses (scale and heading of the frame),
+    `compass_rad` (N,) their compass readings (which photos to match)."""
+    if len(images) < config.min_registered:
+        raise MapError(f"{len(images)} photos: SfM needs at least {config.min_registered}")
+    work = Path(tempfile.mkdtemp(prefix="ibrnav_sfm_"))
+    try:
+        rec = run_sfm(images, K, compass_rad, config, work)
+        cams, idx = {}, []
+        for image in rec.images.values():
+            if image.has_pose:
+                i = int(Path(image.name).stem)
+                cams[i] = Camera.from_pycolmap(image, rec.cameras[image.camera_id])
+                idx.append(i)
+        idx = sorted(idx)
+        centres = np.array([cams[i].center for i in idx])
+        ups = np.array([-cams[i].world_from_cam[:3, 1] for i in idx])
+        cam_xy = np.array([_camera_xy(e, cam_from_robot) for e in np.asarray(estimates)[idx]])
+        world_from_sfm = floor_alignment(centres, ups, cam_xy, float(np.linalg.inv(cam_from_robot)[2, 3]))
+        h, w = images[0].shape[:2]  # COLMAP's K has the half-pixel offset: keep the known K
+        cameras = {i: Camera(K, w, h, _transform_camera(cams[i], world_from_sfm).cam_from_world,
+                             f"photo_{i:05d}") for i in idx}
+        pts, cols, seen_from = _sfm_points(rec, world_from_sfm, cameras)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return _mesh_map(cameras, pts, cols, seen_from, config, registered=len(idx))
+
+
+def _camera_xy(pose: np.ndarray, cam_from_robot: np.ndarray) -> np.ndarray:
+    from robot.protocol import se2_matrix
+
+    return (se2_matrix(pose) @ np.linalg.inv(cam_from_robot))[:2, 3]
+
+
+def _sfm_points(rec, world_from_sfm: np.ndarray, cameras: dict[int, Camera]):
+    """Floor-frame points, colours and the centre of a camera that saw each."""
+    pts, cols, seen = [], [], []
+    for p in rec.points3D.values():
+        img = rec.images[p.track.elements[0].image_id]
+        pts.append(p.xyz)
+        cols.append(p.color)
+        seen.append(cameras[int(Path(img.name).stem)].center)
+    P = np.asarray(pts).reshape(-1, 3) @ world_from_sfm[:3, :3].T + world_from_sfm[:3, 3]
+    return P, np.asarray(cols, np.uint8).reshape(-1, 3), np.asarray(seen).reshape(-1, 3)
+
+
+def _mesh_map(cameras: dict[int, Camera], pts: np.ndarray, cols: np.ndarray, seen_from: np.ndarray,
+              config: MapConfig, registered: int) -> RobotMap:
+    """Filter the points, estimate normals towards their cameras, Poisson-mesh them."""
+    near = np.linalg.norm(pts - seen_from, axis=1) < config.max_point_range_m
+    pts, cols, seen_from = pts[near], cols[near], seen_from[near]
+    keep = remove_outliers(pts)
+    pts, cols, seen_from = pts[keep], cols[keep], seen_from[keep]
+    if len(pts) < 50:
+        raise MapError(f"the photos gave only {len(pts)} map points; need at least 50")
+    normals = estimate_normals(pts, seen_from)
+    mesh = poisson_mesh(pts, normals, cols, config.poisson)
+    return RobotMap(cameras, pts, cols, normals, mesh, registered)
+
+
+def extend_map(old: RobotMap, new_cameras: dict[int, Camera], images: dict[int, np.ndarray],
+               config: MapConfig = MapConfig(), features=None) -> RobotMap:
+    """`old` with the photos at their localised `new_cameras` {index: Camera} added: their
+    SIFT features are matched with their stereo partners' (`stereo_pairs`, old or new
+    photos) and triangulated with the poses fixed; the new points join the old ones and the
+    mesh is rebuilt. `images` {index: image} holds at least every mapped photo's image;
+    `features(index)` returns a photo's cached `ibr.triangulation.Features` (else computed)."""
+    cameras = {**old.cameras, **new_cameras}
+    if not new_cameras:
+        return old
+    order = np.array(sorted(cameras))
+    pairs = stereo_pairs([cameras[i] for i in order], config.triangulation.neighbours)
+    ids = order[pairs] if len(pairs) else np.zeros((0, 2), int)
+    ids = ids[np.isin(ids, list(new_cameras)).any(axis=1)]
+    used = sorted(set(ids.ravel().tolist()))
+    if not used:
+        return RobotMap(cameras, old.points, old.colors, old.normals, old.mesh, old.registered)
+    get = features or (lambda i: sift_features(images[i], config.triangulation.n_features))
+    local = {i: k for k, i in enumerate(used)}
+    cams = [cameras[i] for i in used]
+    P, C, _, _, first = pair_tracks(cams, [get(i) for i in used], np.vectorize(local.get)(ids).reshape(-1, 2),
+                                    config.triangulation)
+    seen = np.array([cams[f].center for f in first]).reshape(-1, 3)
+    return _mesh_map(cameras, np.vstack([old.points, P]), np.vstack([old.colors, C]).astype(np.uint8),
+                     np.vstack([old.points + old.normals, seen]), config, old.registered)

@@ -1,0 +1,116 @@
+"""Adaptive exploration (Foster et al. IV-B) on a map with known geometry: goal picking,
+path following on the localiser's estimate, giving a goal up after k obstacles, rebuilding."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import shapely
+
+from explore.candidates import sample_candidates
+from ibr.synthetic import make_world
+from robot.adaptive_exploration import AdaptiveConfig, AdaptiveMission, MissionObserver, MissionPhoto, pick_goals
+from robot.coverage import surface_samples
+from robot.initial_map import RobotMap
+from robot.protocol import MotionResult, robot_camera
+from robot.random_exploration import Body, RandomExplorationConfig, random_exploration
+from robot.sim_robot import SimRobot, SimRobotConfig
+
+START = np.array([-1.5, -2.5, 0.0])
+
+
+class Recorder(MissionObserver):
+    def __init__(self):
+        self.estimates, self.paths = [], []
+
+    def estimate(self, pose, source):
+        self.estimates.append((pose.copy(), source))
+
+    def path(self, xy):
+        self.paths.append(xy)
+
+
+def mission(robot_cls=SimRobot, seed=0) -> tuple[AdaptiveMission, SimRobot, Recorder]:
+    """A mission after 48 random-exploration photos, mapped with their TRUE poses and points
+    sampled on the true mesh (so the test isolates the adaptive stage from SfM)."""
+    world = make_world("office", 0)
+    robot = robot_cls(world, SimRobotConfig(image_size=(320, 240)), np.random.default_rng(seed), start_pose=tuple(START))
+    body = Body(robot, START)
+    photos = []
+    for shot in random_exploration(robot, START, RandomExplorationConfig(n_photos=40, circle_step_rad=np.radians(18)), np.random.default_rng(1), body):
+        cam = robot_camera(robot.truth[-1]["pose"], robot.intrinsics, robot.image_size, robot.cam_from_robot,
+                           name=f"photo_{shot.photo.index:05d}")
+        photos.append(MissionPhoto(shot.photo, shot.estimate, "random", cam))
+    s = surface_samples(world.mesh, 6000, np.random.default_rng(0))
+    rmap = RobotMap({i: p.camera for i, p in enumerate(photos)}, s.points,
+                    np.full((6000, 3), 128, np.uint8), s.normals, world.mesh, len(photos))
+    obs = Recorder()
+    cfg = AdaptiveConfig(n_candidates=120)
+    return AdaptiveMission(robot, body, photos, rmap, cfg, np.random.default_rng(2), obs), robot, obs
+
+
+@pytest.fixture(scope="module")
+def office():
+    return mission()
+
+
+def test_pick_goals_takes_the_best_spread_apart():
+    poses = np.array([[0, 0, 0], [0.1, 0, 0.1], [0.1, 0, 2.0], [3, 0, 0], [5, 0, 0.0]])
+    scores = np.array([0.9, 0.8, 0.7, 0.5, 0.6])
+    # pose 1 is too close in place and heading to pose 0; pose 2 is close but turned away
+    assert pick_goals(poses, scores, 3, separation_m=1.0).tolist() == [0, 2, 4]
+
+
+def test_goals_lie_in_the_free_space_and_score_best(office):
+    m, robot, _ = office
+    goals, best, free = m.choose_goals()
+    assert 1 <= len(goals) <= m.config.goals_per_round
+    assert best > 0
+    world_free = robot.world.free_space
+    assert shapely.contains_xy(world_free, goals[:, 0], goals[:, 1]).all()
+    assert free.area > 10  # the 6 x 8 m room minus furniture, sliced from the true mesh
+
+
+def test_goes_to_a_goal_on_the_localisers_estimate(office):
+    m, robot, obs = office
+    goals, _, free = m.choose_goals()
+    grid = m.nav_grid(free)
+    # a goal 1-2.5 m away, where the map's photos saw enough to localise against
+    cand = sample_candidates(free, 200, np.random.default_rng(5), 0.4)
+    d = np.hypot(*(cand[:, :2] - m.body.est.pose[:2]).T)
+    goal = cand[np.flatnonzero((d > 1.0) & (d < 2.5))[0]]
+    fixes = m.fixes
+    assert m.go_to(goal, grid)
+    # reached by the estimate within reach_m; the truth is near too (vision fixes on the way)
+    assert np.hypot(*(m.body.est.pose[:2] - goal[:2])) < m.config.reach_m + 0.05  # the arrival check
+    assert np.hypot(*(robot.true_pose[:2] - goal[:2])) < 0.4
+    assert m.fixes > fixes and obs.paths
+    assert any(src == "pnp" for _, src in obs.estimates)
+    shots = m.capture_at(goal, budget=2)
+    assert np.hypot(*(shots[1].estimate[:2] - shots[0].estimate[:2])) > 0.25  # a stereo side step
+    assert [p.stage for p in shots] == ["goal", "goal"] and all(p.camera is not None for p in shots)
+    before = len(m.map.points)
+    m.rebuild(shots)
+    assert len(m.map.points) > before and len(m.map.cameras) == 42
+
+
+class AlwaysBumps(SimRobot):
+    """A robot whose every forward drive hits something at once (front bumper)."""
+
+    drives = 0
+
+    def drive(self, distance_m):
+        if distance_m > 0.25:
+            AlwaysBumps.drives += 1
+            return MotionResult(np.zeros(3), bumper_front=True)
+        return super().drive(distance_m)
+
+
+def test_gives_a_goal_up_after_k_obstacles():
+    m, robot, _ = mission(AlwaysBumps)
+    m.config = replace(m.config, off_path_m=0.2, max_obstacles=5)
+    goals, _, free = m.choose_goals()
+    far = goals[np.argmax(np.hypot(*(goals[:, :2] - m.body.est.pose[:2]).T))]
+    AlwaysBumps.drives = 0
+    assert not m.go_to(far, m.nav_grid(free))
+    assert AlwaysBumps.drives == 6  # k = 5 obstacles survived, the 6th gives up
