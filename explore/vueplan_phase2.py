@@ -95,6 +95,20 @@ def usable_views(grid: VoxelGrid, views: np.ndarray) -> np.ndarray:
     return ok & (grid.state[c[:, 0], c[:, 1], c[:, 2]] == EMPTY)
 
 
+def exposed_face_projection(d: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(b, p) the largest projection of the rays d (b, p, 3) (voxel centre -> view) onto
+    the outward normal of one of the voxel's exposed faces (b, 6) (FACE_NORMALS order);
+    -inf where no face is exposed. Divided by the ray length it is the cosine of the
+    grazing angle at the best face; negative behind every exposed face (the half-space
+    pruning)."""
+    best = np.full(d.shape[:2], -np.inf)
+    for f, n in enumerate(FACE_NORMALS):
+        a = int(np.flatnonzero(n)[0])
+        proj = d[..., a] if n[a] > 0 else -d[..., a]
+        np.maximum(best, np.where(faces[:, f, None], proj, -np.inf), out=best)
+    return best
+
+
 def count_visible(grid: VoxelGrid, views: np.ndarray, cfg: Phase2Config,
                   frontier: tuple[np.ndarray, np.ndarray] | None = None,
                   stats: dict | None = None) -> np.ndarray:
@@ -116,23 +130,21 @@ def count_visible(grid: VoxelGrid, views: np.ndarray, cfg: Phase2Config,
         clear_fn = lambda a, b: segments_clear(blocked, a, b, dist)  # noqa: E731
     u_c = grid.centers(idx)                      # (m, 3)
     v_c = views[ok_view]                         # (p, 3)
+    v_vox = grid.to_voxel(v_c)
     cos_max = np.cos(cfg.max_grazing_rad)
-    face_n = FACE_NORMALS.astype(float)
     block = max(1, cfg.pairs_per_chunk // len(v_c))
     for s in range(0, len(idx), block):
         d = v_c[None, :, :] - u_c[s:s + block, None, :]        # (b, p, 3)
-        r = np.linalg.norm(d, axis=2)
-        # best exposed face: max over exposed faces of cos(angle to its normal)
-        cos = np.einsum("bpk,fk->bpf", d, face_n) / np.maximum(r, 1e-12)[..., None]
-        cos = np.where(faces[s:s + block, None, :], cos, -np.inf).max(axis=2)
-        ok = (r >= cfg.min_range_m) & (r <= cfg.max_range_m) & (cos >= cos_max)
+        r = np.sqrt(np.einsum("bpk,bpk->bp", d, d))
+        ok = (r >= cfg.min_range_m) & (r <= cfg.max_range_m)
+        ok &= exposed_face_projection(d, faces[s:s + block]) >= cos_max * r
         ui, pj = np.nonzero(ok)
         if stats is not None:
             stats["pairs"] = stats.get("pairs", 0) + ok.size
             stats["rays"] = stats.get("rays", 0) + len(ui)
         if len(ui) == 0:
             continue
-        clear = clear_fn(grid.to_voxel(u_c[s + ui]), grid.to_voxel(v_c[pj]))
+        clear = clear_fn(idx[s + ui] + 0.5, v_vox[pj])  # voxel coordinates
         counts[ok_view] += np.bincount(pj[clear], minlength=len(v_c))
     return counts
 
