@@ -95,7 +95,10 @@ def proxy_mesh(scene: Scene, kind: str):
 def evaluate_scene(scene: Scene, cfg: EvalConfig = EvalConfig(),
                    progress: Callable[[str], None] | None = None) -> dict:
     """Leave-one-out PSNR / SSIM / coverage of each method; the JSON-ready result
-    {"scene", "proxy", "methods": {m: {"psnr_mean", "ssim_mean", "coverage_mean", "per_view"}}}."""
+    {"scene", "proxy", "methods": {m: {"psnr_mean", "ssim_mean", "coverage_mean",
+    "psnr_common_mean", "per_view"}}}. PSNR and SSIM are over the pixels each method covers
+    (so covering harder pixels costs PSNR); psnr_common is over the pixels every compared
+    method covers in that view, the like-for-like comparison."""
     unknown = set(cfg.methods) - set(METHODS)
     if unknown:
         raise EvalError(f"unknown method(s) {sorted(unknown)}; choose from {list(METHODS)}")
@@ -110,14 +113,18 @@ def evaluate_scene(scene: Scene, cfg: EvalConfig = EvalConfig(),
         sources = scene.without(held.name)
         say(f"[{n + 1}/{len(views)}] {held.name}: proxy from {len(sources)} photos")
         mesh = proxy_mesh(sources, cfg.proxy)
-        renderers = make_renderers(sources, mesh, cfg.methods, cfg.k)
-        for m, r in renderers.items():
-            image, covered = r.render(held.camera)
-            row = {"view": held.name, "psnr": psnr(image, held.image, covered),
-                   "ssim": ssim(image, held.image, covered), "coverage": float(covered.mean())}
-            per[m].append(row)
-            say(f"    {m:17s} PSNR {row['psnr']:6.2f} dB  SSIM {row['ssim']:.3f}  coverage {row['coverage']:.3f}")
+        renders = {}
+        for m, r in make_renderers(sources, mesh, cfg.methods, cfg.k).items():
+            renders[m] = r.render(held.camera)
             r.release()
+        common = np.logical_and.reduce([covered for _, covered in renders.values()])
+        for m, (image, covered) in renders.items():
+            row = {"view": held.name, "psnr": psnr(image, held.image, covered),
+                   "ssim": ssim(image, held.image, covered), "coverage": float(covered.mean()),
+                   "psnr_common": psnr(image, held.image, common)}
+            per[m].append(row)
+            say(f"    {m:17s} PSNR {row['psnr']:6.2f} dB  SSIM {row['ssim']:.3f}  coverage {row['coverage']:.3f}"
+                f"  (PSNR {row['psnr_common']:6.2f} dB on the {common.mean():.3f} all methods cover)")
     return {"scene": scene.name, "proxy": cfg.proxy, "methods": {m: summarise(rows) for m, rows in per.items()}}
 
 
@@ -128,7 +135,7 @@ def summarise(rows: list[dict]) -> dict:
         v = v[np.isfinite(v)]
         return float(v.mean()) if len(v) else float("nan")
     return {"psnr_mean": mean("psnr"), "ssim_mean": mean("ssim"), "coverage_mean": mean("coverage"),
-            "per_view": rows}
+            "psnr_common_mean": mean("psnr_common"), "per_view": rows}
 
 
 def stderr_progress(line: str) -> None:

@@ -44,6 +44,7 @@ def test_eval_ibr_writes_leave_one_out_json(gl_ctx, tmp_path):
     assert set(result["methods"]) == {"ulr", "nearest", "lightfield", "lightfield_local"}
     for m, r in result["methods"].items():
         assert len(r["per_view"]) == 2 and 0.0 <= r["coverage_mean"] <= 1.0
+        assert all("psnr_common" in row for row in r["per_view"]) and "psnr_common_mean" in r
     for m in ("ulr", "nearest"):  # (the office's outward-looking ring defeats the light field's net)
         r = result["methods"][m]
         assert r["coverage_mean"] > 0.1 and r["psnr_mean"] > 12.0 and 0.0 < r["ssim_mean"] <= 1.0
