@@ -22,21 +22,29 @@ def rrd_entities(rrd: Path) -> str:
                           text=True).stdout
 
 
-def test_demo_writes_a_recording_with_images_poses_and_map(tmp_path):
-    rrd = tmp_path / "demo.rrd"
-    run = ibrnav("demo", "--max-legs", "6", "--width", "64", "--height", "48", "--save", rrd)
+def test_demo_runs_the_capture_mission_into_a_recording_and_a_session(tmp_path):
+    rrd, capture = tmp_path / "demo.rrd", tmp_path / "capture"
+    run = ibrnav("demo", "--random-photos", "40", "--circle-step-deg", "20", "--photos", "44", "--width", "240",
+                 "--height", "180", "--max-rounds", "1", "--goals-per-round", "2", "--tour-frames", "2",
+                 "--session", capture, "--save", rrd)
     assert run.returncode == 0, run.stderr
-    assert "6 photos" in run.stdout
+    assert "captured 44 photos" in run.stdout
+    assert "initial map:" in run.stderr and "round 1:" in run.stderr  # progress on stderr
     printed = rrd_entities(rrd)
-    for entity in ("/world/robot/camera/image", "/world/robot", "/world/estimate", "/world/map/mesh",
-                   "/world/plan/path", "plots/ultrasonic_m"):
+    for entity in ("/world/robot/camera/image", "/world/robot", "/world/estimate", "/world/map/points",
+                   "/world/map/mesh", "/world/nbv/candidates", "/world/plan/grid", "/world/plan/path",
+                   "/world/tour/camera/image", "plots/coverage", "plots/estimate_error_m"):
         assert entity in printed, entity
+    log = [json.loads(line) for line in (capture / "log.jsonl").read_text().splitlines()]
+    photos = [r for r in log if r["kind"] == "photo"]
+    assert sum(r["stage"] != "localise" for r in photos) == 44
+    assert len(list((capture / "photos").glob("*.png"))) == len(photos)
 
 
-def test_demo_records_to_a_default_file_without_flags(tmp_path):
-    run = ibrnav("demo", "--max-legs", "2", "--width", "32", "--height", "24", cwd=tmp_path)
+def test_drive_records_to_a_default_file_without_flags(tmp_path):
+    run = ibrnav("drive", "--max-legs", "2", "--width", "32", "--height", "24", cwd=tmp_path)
     assert run.returncode == 0, run.stderr
-    assert (tmp_path / "ibrnav_demo.rrd").stat().st_size > 0
+    assert (tmp_path / "ibrnav_drive.rrd").stat().st_size > 0
 
 
 def test_scene_show_logs_cameras_and_geometry(tmp_path, strecha_dir):
