@@ -16,6 +16,7 @@ def _normalised_distances(centres: np.ndarray) -> np.ndarray:
     return d / d.mean()
 
 
+@pytest.mark.realdata
 def test_sfm_recovers_the_strecha_camera_layout(strecha_dir, tmp_path):
     names = ["0003.jpg", "0004.jpg", "0005.jpg", "0006.jpg", "0007.jpg"]
     (tmp_path / "images").mkdir()
