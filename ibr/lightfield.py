@@ -64,7 +64,7 @@ class LightFieldConfig:
     its neighbours along the path project to near infinity, those slightly behind it
     mirrored to the wrong side, and the image falls in triangles of far-turned sources.
     Seen from a little behind, the neighbours project to finite pixels on their own side
-    (fountain-P11 leave-one-out, single plane: 15.5 -> ~19.5 dB mean)."""
+    (fountain-P11 leave-one-out, single plane: 14.8 -> 19.6 dB mean PSNR)."""
 
 
 @dataclass
