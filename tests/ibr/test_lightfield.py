@@ -121,3 +121,28 @@ def test_net_seen_from_behind_keeps_path_neighbours_on_their_sides():
     assert heigl.pixels[left, 0] > W and heigl.pixels[right, 0] > W   # both mirrored/far right
     behind = camera_net(virtual, row, extend_to_border=False, eye_back=0.3 * 6.0)
     assert behind.pixels[left, 0] < cx < behind.pixels[right, 0]
+
+
+def test_blending_weights_ramp_like_gouraud_over_the_net(gl_ctx, wall_scene):
+    """Each source a flat colour: at a projected camera centre the render is that source's
+    colour (weight 1 at its own corner, 0 at the others), and halfway along a net edge it is
+    the even mix of the edge's two sources (a flat ramp in between)."""
+    scene, _ = wall_scene
+    colours = np.random.default_rng(1).integers(30, 226, (len(scene), 3))
+    flat = Scene("flat", [View(v.camera, np.full((H, W, 3), c, np.uint8)) for v, c in zip(scene.views, colours)],
+                 mesh=scene.mesh)
+    virtual = _camera(0.1, 0.1, dy=-3.0)                 # behind the grid: the net lies in the image
+    lf = LightFieldRenderer(flat, scene.mesh, gl_ctx, LightFieldConfig(net_eye_back=0.0, fill_holes=False))
+    image, covered = lf.render(virtual)
+    net = lf.net(virtual)
+    lf.release()
+    rendered = lambda p: image[int(round(p[1])), int(round(p[0]))].astype(float)  # noqa: E731
+    assert net.n_projected == 9 and covered.mean() > 0.5   # the image border sees wall no source saw
+    for vid in range(net.n_projected):
+        np.testing.assert_allclose(rendered(net.pixels[vid]), colours[net.sources[vid]], atol=6)
+    edges = {tuple(sorted(e)) for t in net.triangles for e in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0]))
+             if max(e) < net.n_projected}
+    assert len(edges) >= 16
+    for a, b in edges:
+        mid = 0.5 * (net.pixels[a] + net.pixels[b])
+        np.testing.assert_allclose(rendered(mid), 0.5 * (colours[net.sources[a]] + colours[net.sources[b]]), atol=6)
