@@ -40,7 +40,8 @@ def eval_track(args: argparse.Namespace) -> int:
         raise InputError(f"{args.scene}: eval-track needs a synthetic world (synthetic:office)")
     world = make_world(args.scene.split(":", 1)[1].partition("?")[0], args.world_seed)
     config = TrackConfig(steps=args.steps, kidnap_step=None if args.kidnap_step < 0 else args.kidnap_step,
-                         global_init=not args.known_start, n_particles=args.particles)
+                         global_init=not args.known_start, n_particles=args.particles,
+                         n_max=args.max_particles)
     ibr_viz.rerun_setup(args, "ibrnav_eval_track", "eval_track.rrd")
     ibr_viz.log_mesh("world/map/mesh", world.mesh)
     trials = []
@@ -81,9 +82,12 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("eval-track", help="particle-filter tracking + kidnapping in a synthetic world")
     p.add_argument("scene", nargs="?", default="synthetic:office", help="synthetic:NAME (default office)")
     p.add_argument("--trials", type=int, default=20)
-    p.add_argument("--steps", type=int, default=60, help="legs (photos) per trial")
-    p.add_argument("--kidnap-step", type=int, default=30, help="teleport before this step (-1: never)")
-    p.add_argument("--particles", type=int, default=2000, help="initial particle count")
+    d = TrackConfig()
+    p.add_argument("--steps", type=int, default=d.steps, help="legs (photos) per trial")
+    p.add_argument("--kidnap-step", type=int, default=d.kidnap_step, help="teleport before this step (-1: never)")
+    p.add_argument("--particles", type=int, default=d.n_particles,
+                   help="initial particle count (and of a global re-initialisation)")
+    p.add_argument("--max-particles", type=int, default=d.n_max, help="KLD-sampling's ceiling")
     p.add_argument("--known-start", action="store_true", help="start from the true pose, not a uniform prior")
     p.add_argument("--seed", type=int, default=0, help="seed of trial 0 (trial i uses seed + i)")
     p.add_argument("--world-seed", type=int, default=0)

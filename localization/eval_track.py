@@ -18,7 +18,7 @@ from ibr.camera import Camera
 from ibr.synthetic import SyntheticWorld, loop_route
 from localization.motion_models import wrap_angle
 from localization.particle_filter import ParticleFilter, ParticleFilterConfig, sample_free_poses
-from localization.render_likelihood import BatchedLikelihood, LikelihoodConfig
+from localization.render_likelihood import BatchedLikelihood, LikelihoodConfig, likelihood_renderer
 from localization.render_mcl import RenderMCL, StepReport
 from robot.sim_robot import SimRobot, SimRobotConfig
 from robot.waypoint_follower import follow_waypoints
@@ -26,14 +26,16 @@ from robot.waypoint_follower import follow_waypoints
 
 @dataclass(frozen=True)
 class TrackConfig:
-    steps: int = 60
+    steps: int = 50
     """Legs driven (one photo and one filter step per leg)."""
-    kidnap_step: int | None = 30
+    kidnap_step: int | None = 20
     """Teleport the robot before this step (None: never)."""
     global_init: bool = True
     """Start from a uniform prior over the free space (else from the true start pose)."""
-    n_particles: int = 2000
-    """Initial particle count (KLD-sampling adapts it afterwards)."""
+    n_particles: int = 1500
+    """Initial particle count, and the count of a global re-initialisation."""
+    n_max: int = 3000
+    """Most particles KLD-sampling may ask for."""
     recovered_m: float = 0.25
     """Localised when the position error is below this (m) ..."""
     recovered_rad: float = np.radians(10.0)
@@ -64,13 +66,14 @@ def run_tracking(world: SyntheticWorld, seed: int, config: TrackConfig = TrackCo
     route = loop_route(world)
     start = np.array([*route[0], 0.0])
     robot = SimRobot(world, SimRobotConfig(), np.random.default_rng(rng.integers(2**32)), ctx, start)
-    pf = ParticleFilter(robot.free, ParticleFilterConfig(n_particles=config.n_particles),
+    pf = ParticleFilter(robot.free, ParticleFilterConfig(n_particles=config.n_particles, n_max=config.n_max),
                         np.random.default_rng(rng.integers(2**32)))
     if config.global_init:
         pf.init_uniform()
     else:
         pf.init_gaussian(start, [0.05, 0.05, np.radians(2)])
-    likelihood = BatchedLikelihood(world.renderer(ctx), LikelihoodConfig(), world.light)
+    likelihood = BatchedLikelihood(likelihood_renderer(world.mesh, ctx, world.background),
+                                   LikelihoodConfig(), world.light)
     mcl = RenderMCL(pf, likelihood, Camera(robot.intrinsics, *robot.image_size), robot.cam_from_robot)
     errors, odom = [], robot.odometry()
     legs = follow_waypoints(robot, np.tile(route, (100, 1)), start, rng=np.random.default_rng(seed))

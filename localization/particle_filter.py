@@ -9,7 +9,16 @@ Thrun et al. (Probabilistic Robotics, ch. 8):
 - KLD-sampling (Fox 2003): the particle count adapts to the number of occupied
   (x, y, theta) histogram bins;
 - augmented MCL: short- and long-term averages of the likelihood (alpha_fast,
-  alpha_slow) trigger random injection of particles when the filter is lost (kidnapping);
+  alpha_slow) trigger random injection of particles when the filter is lost (kidnapping).
+  The averages are taken of a likelihood that is comparable from step to step (the
+  caller's untempered `fit_loglik`, not the tempered weights), a due injection forces a
+  resampling step even while the effective sample size is high (otherwise a tight cluster
+  that fits equally badly everywhere is never resampled, so never injected into), and
+  when the short-term average collapses far below the long-term one the whole set is
+  re-initialised uniformly (global re-initialisation, as nav2_amcl's global-localisation
+  reset; sensor-resetting localisation, Lenser & Veloso 2000) and the averages restart
+  (nav2_amcl resets them after injecting, "to avoid spiralling off into complete
+  randomness");
 - Loc-NeRF's roughening: a small random perturbation of every particle after resampling.
 Frames: world, metres, radians. Weights are kept as log-weights (N,).
 """
@@ -47,10 +56,13 @@ class ParticleFilterConfig:
     """'systematic' or 'stratified' (filterpy)."""
     alphas: tuple[float, float, float, float] = (0.05, 0.005, 0.05, 0.005)
     """Odometry noise alpha1..4 of the prediction (Thrun Table 5.6)."""
-    alpha_slow: float = 0.02
+    alpha_slow: float = 0.05
     """Rate of the long-term likelihood average (augmented MCL)."""
-    alpha_fast: float = 0.3
+    alpha_fast: float = 0.5
     """Rate of the short-term likelihood average (augmented MCL)."""
+    reinit_ratio: float = 0.25
+    """Re-initialise the whole set uniformly when w_fast / w_slow falls below this (the
+    likelihood collapsed: kidnapped); 0 disables it."""
     roughening: tuple[float, float, float] = (0.02, 0.02, np.radians(1.0))
     """Std of the perturbation applied after resampling (m, m, rad)."""
 
@@ -119,6 +131,8 @@ class ParticleFilter:
         self.log_w = np.zeros(0)
         self.w_slow = self.w_fast = 0.0
         self.n_injected = 0
+        self.reinitialised = False
+        """Whether the last resampling step was a global re-initialisation."""
 
     # --- initialisation -----------------------------------------------------------
     def init_uniform(self, n: int | None = None) -> None:
@@ -141,28 +155,49 @@ class ParticleFilter:
         self.particles = sample_motion_model_odometry(self.particles, odom_before, odom_after,
                                                       self.config.alphas, self.rng)
 
-    def update(self, loglik: np.ndarray) -> None:
-        """Weight by per-particle log-likelihoods (N,); zero weight outside the map; update
-        the augmented-MCL likelihood averages."""
+    def update(self, loglik: np.ndarray, fit_loglik: np.ndarray | None = None) -> None:
+        """Weight by per-particle log-likelihoods (N,) (possibly tempered); zero weight
+        outside the map. `fit_loglik` (N,): the same measurement as a likelihood that is
+        comparable across steps (fixed temperature and scale), for the augmented-MCL
+        averages; default `loglik`."""
         inside = shapely.contains_xy(self.free, self.particles[:, 0], self.particles[:, 1])
         loglik = np.where(inside, loglik, -np.inf)
         if not np.isfinite(loglik).any():  # every particle left the map: start over
             self.init_uniform(len(self.particles))
             return
         prev = self.log_w - np.logaddexp.reduce(self.log_w)
-        total = prev + loglik
-        # average likelihood under the previous weights (for w_slow / w_fast)
-        w_avg = float(np.exp(np.logaddexp.reduce(total)))
+        fit = loglik if fit_loglik is None else np.where(inside, fit_loglik, -np.inf)
+        # average likelihood under the previous weights (Thrun Table 8.3's w_avg, weighted)
+        w_avg = float(np.exp(np.logaddexp.reduce(prev + fit)))
         c = self.config
         self.w_slow = w_avg if self.w_slow == 0 else self.w_slow + c.alpha_slow * (w_avg - self.w_slow)
         self.w_fast = w_avg if self.w_fast == 0 else self.w_fast + c.alpha_fast * (w_avg - self.w_fast)
+        total = prev + loglik
         self.log_w = total - np.logaddexp.reduce(total)
+
+    def injection_probability(self) -> float:
+        """Augmented MCL's max(0, 1 - w_fast / w_slow) (Thrun Table 8.3)."""
+        return max(0.0, 1.0 - self.w_fast / self.w_slow) if self.w_slow > 0 else 0.0
+
+    def collapsed(self) -> bool:
+        """Whether the short-term likelihood average fell below `reinit_ratio` of the
+        long-term one."""
+        return self.w_slow > 0 and self.w_fast < self.config.reinit_ratio * self.w_slow
 
     def resample_if_needed(self) -> bool:
         """Resample (KLD-adaptive count, random injection, roughening) when the effective
-        sample size is low. Returns whether it resampled."""
+        sample size is low or an injection is due; re-initialise globally when the
+        likelihood collapsed. Returns whether it resampled."""
         c = self.config
-        if effective_sample_size(self.log_w) >= c.ess_fraction * len(self.particles):
+        self.n_injected, self.reinitialised = 0, False
+        if self.collapsed():
+            self.init_uniform()
+            self.w_slow = self.w_fast = 0.0
+            self.n_injected, self.reinitialised = len(self.particles), True
+            return True
+        p_inject = self.injection_probability()
+        if (effective_sample_size(self.log_w) >= c.ess_fraction * len(self.particles)
+                and p_inject * len(self.particles) < 1):
             return False
         w = np.exp(self.log_w - self.log_w.max())
         w /= w.sum()
@@ -174,7 +209,6 @@ class ParticleFilter:
                             c.n_min, c.n_max))
         kept = kept[self.rng.choice(len(kept), n_new, replace=n_new > len(kept))]
         # augmented MCL: inject random particles while the short-term fit is worse
-        p_inject = max(0.0, 1.0 - self.w_fast / self.w_slow) if self.w_slow > 0 else 0.0
         inject = self.rng.random(n_new) < p_inject
         self.n_injected = int(inject.sum())
         if self.n_injected:

@@ -20,7 +20,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import cv2
+import moderngl
 import numpy as np
+import trimesh
 
 from ibr.camera import Camera
 from ibr.gl import load_compute
@@ -49,6 +51,20 @@ def scores_to_loglik(scores: np.ndarray, config: LikelihoodConfig, temperature: 
     if config.score == "ncc":
         return -(1.0 - scores[:, 0] * scores[:, 2]) / t
     return -scores[:, 1] / (2 * t * t)
+
+
+def likelihood_renderer(mesh: trimesh.Trimesh, ctx: moderngl.Context | None = None,
+                        background=(0.0, 0.0, 0.0)) -> MeshRenderer:
+    """A lean renderer of a textured map mesh for the likelihood pass: its own
+    `MeshRenderer` whose texture is sampled trilinearly from the mipmaps, without the
+    anisotropic filtering the photo renderer uses. On llvmpipe anisotropic sampling of the
+    strongly minified textures of 32x24 / 64x48 views costs 10-40x the whole pass, and
+    its sharpness is lost in views that small anyway. (For meshes with many triangles,
+    decimate first, e.g. `localization.lean_model.lean_mesh`.)"""
+    renderer = MeshRenderer(mesh, ctx, background=background)
+    renderer.texture.anisotropy = 1.0
+    renderer.texture.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+    return renderer
 
 
 class BatchedLikelihood:

@@ -39,6 +39,8 @@ class StepReport:
     resampled: bool
     injected: int
     size: tuple[int, int]
+    reinitialised: bool = False
+    """Whether the filter re-initialised globally at this step (likelihood collapsed)."""
 
 
 class RenderMCL:
@@ -65,7 +67,10 @@ class RenderMCL:
         clip, eyes = se2_views(self.pf.particles, template, self.cam_from_robot, m.near, m.far)
         scores = self.likelihood.view_scores(clip, eyes)
         temperature = self.likelihood.config.temperature * (1 + self.config.temper_per_m * spread)
-        self.pf.update(scores_to_loglik(scores, self.likelihood.config, temperature))
+        # the weights are tempered; the augmented-MCL averages need the untempered
+        # likelihood, or a spread filter would look as good as a converged one
+        self.pf.update(scores_to_loglik(scores, self.likelihood.config, temperature),
+                       fit_loglik=scores_to_loglik(scores, self.likelihood.config))
         return size
 
     def step(self, odom_before: np.ndarray, odom_after: np.ndarray, image: np.ndarray) -> StepReport:
@@ -75,4 +80,5 @@ class RenderMCL:
         mean, cov, best = self.pf.estimate()
         n = len(self.pf.particles)
         resampled = self.pf.resample_if_needed()
-        return StepReport(mean, cov, best, n, resampled, self.pf.n_injected if resampled else 0, size)
+        return StepReport(mean, cov, best, n, resampled, self.pf.n_injected if resampled else 0, size,
+                          self.pf.reinitialised if resampled else False)

@@ -72,6 +72,46 @@ def test_kidnapping_injects_random_particles():
     pf.update(np.full(len(pf.particles), -30.0))  # the world stopped matching
     pf.log_w += np.random.default_rng(1).normal(0, 1, len(pf.log_w))
     assert pf.resample_if_needed()
-    # w_fast falls by alpha_fast, w_slow by alpha_slow: p = 1 - (1 - 0.3) / (1 - 0.02)
+    # w_fast falls by alpha_fast, w_slow by alpha_slow: p = 1 - (1 - 0.5) / (1 - 0.05)
     assert injected_before == 0
-    assert pf.n_injected / len(pf.particles) == pytest.approx(1 - 0.7 / 0.98, abs=0.1)
+    assert pf.n_injected / len(pf.particles) == pytest.approx(1 - 0.5 / 0.95, abs=0.1)
+
+
+def _tracking_filter(seed: int) -> ParticleFilter:
+    """A filter tracking well at (3, 1, 0): five steps of a perfect fit."""
+    pf = ParticleFilter(FREE, ParticleFilterConfig(n_particles=500), np.random.default_rng(seed))
+    pf.init_gaussian([3.0, 1.0, 0.0], [0.05, 0.05, 0.05])
+    for _ in range(5):
+        pf.update(np.zeros(len(pf.particles)))
+        pf.resample_if_needed()
+    return pf
+
+
+def test_due_injection_forces_resampling_while_the_weights_are_even():
+    """A tight cluster that fits equally badly everywhere keeps its effective sample size;
+    the injection must still happen (it lives in the resampling step)."""
+    pf = _tracking_filter(2)
+    pf.update(np.full(len(pf.particles), -30.0))  # even weights, ESS = N
+    assert pf.injection_probability() == pytest.approx(1 - 0.5 / 0.95)
+    assert pf.resample_if_needed() and pf.n_injected > 0 and not pf.reinitialised
+
+
+def test_collapsed_likelihood_reinitialises_globally():
+    pf = _tracking_filter(3)
+    for k in range(3):  # w_fast / w_slow: 0.5 / 0.95, 0.25 / 0.9025, 0.125 / 0.857 < reinit_ratio
+        pf.update(np.full(len(pf.particles), -30.0))
+        pf.resample_if_needed()
+        assert pf.reinitialised == (k == 2)
+    assert len(pf.particles) == pf.config.n_particles
+    p = pf.particles
+    assert (p[:, 0] < 1).mean() == pytest.approx(2 / FREE.area, abs=0.06)  # uniform again
+    assert pf.w_slow == pf.w_fast == 0.0  # the averages restart (nav2_amcl)
+
+
+def test_averages_use_the_fit_likelihood_not_the_tempered_one():
+    pf = _tracking_filter(4)
+    w_slow, w_fast = pf.w_slow, pf.w_fast
+    # a flat tempered likelihood but a collapsed fit: the averages see the fit
+    pf.update(np.zeros(len(pf.particles)), fit_loglik=np.full(len(pf.particles), -30.0))
+    assert pf.w_fast == pytest.approx(w_fast * 0.5) and pf.w_slow == pytest.approx(w_slow * 0.95)
+    np.testing.assert_allclose(pf.weights, 1 / len(pf.particles))  # weights from the tempered one

@@ -3,7 +3,7 @@ import pytest
 
 from ibr.camera import intrinsics_from_fov
 from localization.pose_views import se2_views
-from localization.render_likelihood import (BatchedLikelihood, LikelihoodConfig, luminance,
+from localization.render_likelihood import (BatchedLikelihood, LikelihoodConfig, likelihood_renderer, luminance,
                                             reference_tile_scores, scores_to_loglik)
 from robot.protocol import forward_camera_mount, robot_camera
 
@@ -62,3 +62,20 @@ def test_ncc_ignores_exposure(setup, gl_ctx):
     lik.set_observation((observed * 0.6).astype(np.uint8))
     b = lik.tile_scores(cams[:5])[:, 0]
     np.testing.assert_allclose(a, b, atol=0.02)
+
+
+def test_lean_renderer_batched_equals_reference_and_tracks_full_renderer(setup, gl_ctx):
+    """The likelihood's lean renderer (trilinear, no anisotropic filtering): the batched
+    pass equals its per-particle reference, and its NCC stays close to the photo renderer's."""
+    office, observed, poses, cams, _ = setup
+    lean = likelihood_renderer(office.mesh, gl_ctx, office.background)
+    assert lean.texture.anisotropy == 1.0 and office.renderer(gl_ctx).texture.anisotropy > 1.0
+    lik = BatchedLikelihood(lean, light=office.light)
+    lik.set_observation(observed, (64, 48))
+    batched = lik.tile_scores(cams)
+    ref = reference_tile_scores(lean, cams, luminance(observed, (64, 48)), office.light)
+    np.testing.assert_allclose(batched, ref, atol=2e-3)
+    full = BatchedLikelihood(office.renderer(gl_ctx), light=office.light)
+    full.set_observation(observed, (64, 48))
+    np.testing.assert_allclose(batched[:, 0], full.tile_scores(cams)[:, 0], atol=0.1)
+    assert np.argmax(batched[:, 0] * batched[:, 2]) == 0  # still peaks at the truth
