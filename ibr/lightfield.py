@@ -172,7 +172,7 @@ def corner_point_from_source_depth(eye: np.ndarray, source: Camera, depth: np.nd
     d /= np.linalg.norm(d)
     z_dir = source.cam_from_world[2, :3] @ d
     uv, _ = source.project(source.center[None] + d[None])
-    u, v = np.floor(np.nan_to_num(uv[0]) + 0.5).astype(int)
+    u, v = np.floor(np.clip(np.nan_to_num(uv[0]), -1e6, 1e6) + 0.5).astype(int)
     if z_dir <= 1e-6 or not (0 <= u < source.width and 0 <= v < source.height) or depth[v, u] <= 0:
         return np.full(3, np.nan)
     return source.center + d * depth[v, u] / z_dir

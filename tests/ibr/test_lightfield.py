@@ -146,3 +146,53 @@ def test_blending_weights_ramp_like_gouraud_over_the_net(gl_ctx, wall_scene):
     for a, b in edges:
         mid = 0.5 * (net.pixels[a] + net.pixels[b])
         np.testing.assert_allclose(rendered(mid), 0.5 * (colours[net.sources[a]] + colours[net.sources[b]]), atol=6)
+
+
+@pytest.fixture(scope="module")
+def wall_and_box_scene(gl_ctx):
+    """The wall scene with a textured box 3 m in front of the cameras, half-way to the wall."""
+    from tests.ibr.test_plane_sweep import _textured
+
+    box = trimesh.creation.box((1.6, 0.8, 1.2))
+    box.apply_translation((0.3, 3.0, 0.0))
+    world = trimesh.util.concatenate([_textured_wall(), _textured(box.subdivide().subdivide(), 1)])
+    renderer = MeshRenderer(world, gl_ctx)
+    cams = [_camera(x, z, name=f"c{i}") for i, (x, z) in
+            enumerate((x, z) for x in (-0.6, 0.0, 0.6) for z in (-0.4, 0.0, 0.4))]
+    return Scene("wall+box", [View(c, renderer.render(c).color) for c in cams], mesh=world), renderer
+
+
+def test_local_depth_beats_a_single_plane_off_the_plane(gl_ctx, wall_and_box_scene):
+    """Approximating triangles from local depth follow the box; one focal plane ghosts it
+    (measured 17.8 vs 10.9 dB on this busy random texture)."""
+    scene, renderer = wall_and_box_scene
+    virtual = _camera(0.25, -0.15, dy=-0.5)
+    truth = renderer.render(virtual).color
+    score = {}
+    for mode in ("single_plane", "local_depth"):
+        lf = LightFieldRenderer(scene, scene.mesh, gl_ctx, LightFieldConfig(mode=mode))
+        image, covered = lf.render(virtual)
+        lf.release()
+        assert covered.mean() > 0.95
+        score[mode] = psnr(image, truth, covered)
+    assert score["local_depth"] > score["single_plane"] + 4.0
+
+
+def test_virtual_camera_on_the_capture_plane(gl_ctx, wall_and_box_scene):
+    """A virtual camera in the plane of the source cameras: Heigl's own net (centres
+    projected from it) degenerates and covers nothing; seen from behind (the default) it
+    covers the view and local depth still helps."""
+    scene, renderer = wall_and_box_scene
+    virtual = _camera(0.25, -0.15)
+    truth = renderer.render(virtual).color
+    heigl = LightFieldRenderer(scene, scene.mesh, gl_ctx, LightFieldConfig(mode="local_depth", net_eye_back=0.0))
+    assert heigl.render(virtual)[1].mean() < 0.05
+    heigl.release()
+    score = {}
+    for mode in ("single_plane", "local_depth"):
+        lf = LightFieldRenderer(scene, scene.mesh, gl_ctx, LightFieldConfig(mode=mode))
+        image, covered = lf.render(virtual)
+        lf.release()
+        assert covered.mean() > 0.95
+        score[mode] = psnr(image, truth, covered)
+    assert score["local_depth"] > score["single_plane"] + 4.0
