@@ -90,6 +90,9 @@ def render(args: argparse.Namespace) -> int:
     sources = scene
     if args.hold_out and args.from_view:
         sources = scene.without(args.from_view)
+    if args.proxy != "mesh":
+        print(f"{scene.name}: proxy geometry from {len(sources)} photos (cached beside the scene after the "
+              f"first run)", file=sys.stderr, flush=True)
     mesh = proxy_mesh(sources, args.proxy)
     method = args.method.replace("-", "_")
     renderer = make_renderers(sources, mesh, [method], args.k)[method]
