@@ -59,12 +59,16 @@ class FeatureLocalizerConfig:
 class PnPResult:
     """A localised query. cam_from_world (4, 4) rigid, world metres -> camera axes;
     n_matches: descriptor matches given to RANSAC; n_inliers: RANSAC inliers; camera: the
-    query's `Camera` at that pose (with the refined focal length if it was refined)."""
+    query's `Camera` at that pose (with the refined focal length if it was refined);
+    inlier_uv (n_inliers, 2) pixels and inlier_xyz (n_inliers, 3) world metres: the inlier
+    correspondences."""
 
     cam_from_world: np.ndarray
     n_matches: int
     n_inliers: int
     camera: Camera
+    inlier_uv: np.ndarray | None = None
+    inlier_xyz: np.ndarray | None = None
 
 
 def pycolmap_camera(camera: Camera) -> pycolmap.Camera:
@@ -177,7 +181,9 @@ class FeatureMap:
         if refine_focal:
             fx, fy = cam.params[0], cam.params[1]
             K[0, 0], K[1, 1] = fx, fy
-        return PnPResult(T, len(m), int(res["num_inliers"]), Camera(K, camera.width, camera.height, T, camera.name))
+        inl = np.asarray(res["inlier_mask"], bool)
+        return PnPResult(T, len(m), int(res["num_inliers"]), Camera(K, camera.width, camera.height, T, camera.name),
+                         feats.uv[m[inl, 0]], self.points[m[inl, 1]])
 
 
 def pose_errors(cam_from_world: np.ndarray, truth: np.ndarray) -> tuple[float, float]:

@@ -1,0 +1,63 @@
+"""Feature localiser (SIFT map triangulated with known poses + RANSAC PnP) on real photos
+with laser-measured cameras, and the `localize` command's handling of bad input."""
+
+import numpy as np
+import pytest
+
+from ibr.scene import load_scene
+from ibrnav.cli import main
+from localization.feature_localizer import FeatureMap, pose_errors
+
+
+@pytest.fixture(scope="module")
+def fountain(strecha_dir):
+    return load_scene(strecha_dir / "fountain-P11")
+
+
+@pytest.mark.realdata
+def test_pnp_localises_a_held_out_strecha_photo_within_1cm_and_0_2deg(fountain):
+    scene = fountain
+    held = scene.view("0005.jpg")
+    # a map of the held-out photo's four neighbours (not itself): fast, and still leave-one-out
+    others = [n for n in scene.views if n.name in ("0003.jpg", "0004.jpg", "0006.jpg", "0007.jpg")]
+    fmap = FeatureMap.from_scene(scene, exclude=[v.name for v in scene.views if v not in others])
+    assert len(fmap) > 1000
+    res = fmap.localize(held.image, held.camera.with_pose(np.eye(4)))
+    assert res is not None and res.n_inliers > 100
+    pos, rot = pose_errors(res.cam_from_world, held.camera.cam_from_world)
+    assert pos < 0.01 and rot < 0.2, (pos, rot)
+    np.testing.assert_allclose(res.camera.cam_from_world, res.cam_from_world)
+
+
+@pytest.mark.realdata
+def test_pnp_gives_no_pose_for_a_photo_of_something_else(fountain):
+    scene = fountain
+    fmap = FeatureMap.from_scene(scene, exclude=[v.name for v in scene.views][:-3])
+    noise = np.random.default_rng(0).integers(0, 256, scene.views[0].image.shape, dtype=np.uint8)
+    assert fmap.localize(noise, scene.views[0].camera) is None
+
+
+def test_missing_query_file_is_one_clear_error(tmp_path, capsys):
+    rc = main(["localize", "synthetic:office", "--query", str(tmp_path / "nope.jpg"), "--method", "pnp",
+               "--save", str(tmp_path / "x.rrd")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "nope.jpg: image file not found" in err and len(err.strip().splitlines()) == 1
+
+
+def test_unreadable_query_image_is_one_clear_error(tmp_path, capsys):
+    bad = tmp_path / "broken.jpg"
+    bad.write_bytes(b"\xff\xd8\xff\xe0 definitely not a jpeg")
+    rc = main(["localize", "synthetic:office", "--query", str(bad), "--save", str(tmp_path / "x.rrd")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "broken.jpg: unreadable or truncated image" in err and len(err.strip().splitlines()) == 1
+
+
+def test_bad_prior_is_one_clear_error(tmp_path, capsys):
+    from PIL import Image
+
+    query = tmp_path / "q.png"
+    Image.fromarray(np.zeros((480, 640, 3), np.uint8)).save(query)
+    rc = main(["localize", "synthetic:office", "--query", str(query), "--method", "pf",
+               "--prior", "1,2,three", "--save", str(tmp_path / "x.rrd")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "--prior '1,2,three'" in err
