@@ -34,3 +34,17 @@ def log_observed_vs_rendered(observed: np.ndarray, rendered: np.ndarray) -> None
     """The camera image and the model's view at the estimate, side by side."""
     rr.log("localization/observed", rr.Image(observed))
     rr.log("localization/rendered_at_estimate", rr.Image(rendered))
+
+
+def log_pose6_particles(centres: np.ndarray, weights: np.ndarray, path: str = "world/particles") -> None:
+    """6-DoF particles: their camera centres (N, 3) as points coloured by weight."""
+    w = (weights / max(weights.max(), 1e-300))[:, None]
+    colors = ((1 - w) * [40, 40, 150] + w * [250, 230, 40]).astype(np.uint8)
+    rr.log(path, rr.Points3D(centres, colors=colors, radii=0.02))
+
+
+def log_camera_pose(path: str, camera, image: np.ndarray | None = None) -> None:
+    """A posed camera (`ibr.camera.Camera`), e.g. world/estimate or world/truth, with its image."""
+    from ibr.viz import log_camera
+
+    log_camera(path, camera, image)
