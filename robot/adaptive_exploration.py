@@ -37,7 +37,7 @@ from ibr.errors import InputError
 from ibr.triangulation import TriangulationConfig
 from localization.feature_localizer import FeatureLocalizerConfig, FeatureMap
 from localization.motion_models import wrap_angle
-from robot.initial_map import MapConfig, RobotMap, extend_map, initial_map, pair_tracks, stereo_pairs
+from robot.initial_map import MapConfig, RobotMap, extend_map, initial_map, stereo_tracks
 from robot.protocol import Photo, Robot, robot_camera
 from robot.random_exploration import Body, RandomExplorationConfig, random_exploration
 
@@ -56,8 +56,8 @@ class AdaptiveConfig:
     """Two goals of a round are at least this far apart, or differ by 60 degrees in heading (m)."""
     photos_per_goal: int = 2
     """Photos taken at a goal: the goal view, then side-stepped copies (stereo baselines)."""
-    stereo_baseline_m: float = 0.4
-    """Side step between the photos of a goal (m): 0.4 m is 5 degrees of parallax at 4.5 m."""
+    stereo_baseline_m: float = 0.6
+    """Side step between the photos of a goal (m): 0.6 m is 5 degrees of parallax at 6.9 m."""
     min_gain_rad: float = 0.05
     """Stop when the best candidate's score (mean angle, rad) is below this."""
     max_rounds: int = 6
@@ -87,7 +87,7 @@ class AdaptiveConfig:
     view_quality: ViewQualityConfig = field(default_factory=ViewQualityConfig)
     """Rendering-quality heuristic."""
     localizer: FeatureLocalizerConfig = field(default_factory=lambda: FeatureLocalizerConfig(
-        triangulation=TriangulationConfig(n_features=1500, neighbours=6, max_epipolar_px=3.0,
+        triangulation=TriangulationConfig(n_features=1500, neighbours=4, max_epipolar_px=3.0,
                                           max_reprojection_px=3.0), query_features=1500, min_inliers=12))
     """SIFT + RANSAC PnP localiser against the map (its map's features are cached per photo)."""
     map: MapConfig = field(default_factory=MapConfig)
@@ -168,6 +168,7 @@ class AdaptiveMission:
         self._features: dict[int, object] = {}
         self.fixes = self.failed = self.given_up = 0
         self.goals_reached: list[np.ndarray] = []
+        self.tracks = stereo_tracks(self._model_cameras(), self._feats, config.localizer.triangulation)
         self.fmap = self._feature_map()
 
     # --- localisation -------------------------------------------------------------------
@@ -178,16 +179,12 @@ class AdaptiveMission:
             self._features[i] = sift_features(self.photos[i].photo.image, self.config.localizer.triangulation.n_features)
         return self._features[i]
 
+    def _model_cameras(self) -> dict[int, Camera]:
+        return {i: p.camera for i, p in enumerate(self.photos) if p.camera is not None and p.stage != "localise"}
+
     def _feature_map(self) -> FeatureMap:
-        """SIFT + PnP map of the posed model photos (features cached per photo)."""
-        idx = [i for i, p in enumerate(self.photos) if p.camera is not None and p.stage != "localise"]
-        cams = [self.photos[i].camera for i in idx]
-        tri = self.config.localizer.triangulation
-        pairs = stereo_pairs(cams, tri.neighbours)
-        used = sorted(set(pairs.ravel().tolist()))
-        feats = {k: self._feats(idx[k]) for k in used}
-        pts, _, desc, owner, _ = pair_tracks(cams, [feats.get(k) for k in range(len(cams))], pairs, tri)
-        return FeatureMap(pts, desc, owner, self.config.localizer)
+        """SIFT + PnP map of the tracks so far (built once, then grown by `rebuild`)."""
+        return FeatureMap(self.tracks.points, self.tracks.descriptors, self.tracks.owner, self.config.localizer)
 
     def pose_of_camera(self, cam_from_world: np.ndarray) -> np.ndarray:
         """SE(2) robot pose of a camera pose (the mount undone)."""
@@ -237,8 +234,10 @@ class AdaptiveMission:
         free = free_space_from_mesh(self.map.mesh, self.cam_height, xy)
         cand = sample_candidates(free, c.n_candidates, self.rng, c.clearance_m)
         vq = ViewQuality(self.map.mesh, cams, config=c.view_quality)
-        scores = vq.score_poses(cand, self.template, self.robot.cam_from_robot)
-        vq.renderer.release() if hasattr(vq.renderer, "release") else None
+        try:
+            scores = vq.score_poses(cand, self.template, self.robot.cam_from_robot)
+        finally:
+            vq.release()
         pick = pick_goals(cand, scores, c.goals_per_round, c.goal_separation_m)
         self.obs.map(self.map, free)
         self.obs.candidates(cand, scores, cand[pick])
@@ -325,14 +324,14 @@ class AdaptiveMission:
         return out
 
     def rebuild(self, new: list[MissionPhoto]) -> None:
-        """Add the new posed photos to the map and the localiser."""
-        idx = {i: p for i, p in enumerate(self.photos) if p.camera is not None and p.stage != "localise"}
-        new_ids = {i for i, p in idx.items() if any(p is q for q in new)}
+        """Add the new posed photos' tracks to the map (mesh rebuilt) and the localiser."""
+        cams = self._model_cameras()
+        new_ids = {i for i in cams if any(self.photos[i] is q for q in new)}
         if not new_ids:
             return
-        self.map = extend_map(self.map, {i: idx[i].camera for i in new_ids},
-                              {i: p.photo.image for i, p in idx.items()}, self.config.map,
-                              features=self._feats)
+        tracks = stereo_tracks(cams, self._feats, self.config.localizer.triangulation, only=new_ids)
+        self.map = extend_map(self.map, {i: cams[i] for i in new_ids}, tracks, self.config.map)
+        self.tracks = self.tracks + tracks
         self.fmap = self._feature_map()
 
 

@@ -10,8 +10,8 @@ up), then a 2-D similarity (Umeyama) takes the centres onto the dead-reckoning p
 which gives metric scale from the odometry and heading from the compass.
 
 `extend_map` adds photos whose poses were localised (PnP) later: their SIFT features are
-matched with their neighbours and triangulated with the poses *fixed* (`ibr.triangulation`,
-no bundle adjustment), and the mesh is rebuilt. Frames: world metres, z up, floor z = 0;
+matched with their stereo partners (`stereo_tracks`) and triangulated with the poses *fixed*
+(`ibr.triangulation`, no bundle adjustment), and the mesh is rebuilt. Frames: world metres, z up, floor z = 0;
 SE(2) robot poses (x, y, theta).
 """
 
@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import shutil
 import tempfile
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import cv2
@@ -31,7 +31,7 @@ from ibr.errors import InputError
 from ibr.normals import estimate_normals, remove_outliers
 from ibr.poisson import PoissonConfig, poisson_mesh
 from ibr.triangulation import (TriangulationConfig, fundamental_matrix, match_features, sampson_distance,
-                               sift_features, triangulate_pair)
+                               triangulate_pair)
 
 
 class MapError(InputError):
@@ -44,6 +44,9 @@ class MapConfig:
 
     max_features: int = 1500
     """SIFT features per photo for SfM."""
+    sift_first_octave: int = -1
+    """COLMAP's SIFT first octave: -1 doubles the image first (4x the work, but at 0 a 320x240
+    photo keeps ~170 features and SfM registered 12 of 100 photos instead of 94)."""
     match_heading_rad: float = np.radians(75.0)
     """Photos are matched only with those whose compass headings differ less than this (rad)."""
     seed: int = 0
@@ -55,10 +58,6 @@ class MapConfig:
     poisson: PoissonConfig = field(default_factory=lambda: PoissonConfig(depth=7, max_gap_spacing=4.0, threads=1))
     """Poisson meshing of the oriented points (coarse: the heuristic needs a rough proxy; one
     thread: its OpenMP threads spin and crawl, 10x, on a busy 2-core machine)."""
-    triangulation: TriangulationConfig = field(
-        default_factory=lambda: TriangulationConfig(n_features=1500, neighbours=4, max_epipolar_px=3.0,
-                                                    max_reprojection_px=3.0, min_angle_deg=2.0))
-    """Triangulation of later photos with their poses fixed."""
     max_point_range_m: float = 12.0
     """Points farther than this from every camera are dropped (badly triangulated)."""
 
@@ -157,6 +156,7 @@ def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, confi
     reader.camera_params = ",".join(str(v) for v in (K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5))
     extract = pycolmap.FeatureExtractionOptions()
     extract.num_threads, extract.sift.max_num_features = config.threads, config.max_features
+    extract.sift.first_octave = config.sift_first_octave
     pycolmap.extract_features(db, img_dir, names, camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader,
                               extraction_options=extract, device=pycolmap.Device.cpu)
     matching = pycolmap.FeatureMatchingOptions()
@@ -285,28 +285,56 @@ def _mesh_map(cameras: dict[int, Camera], pts: np.ndarray, cols: np.ndarray, see
     return RobotMap(cameras, pts, cols, normals, mesh, registered)
 
 
-def extend_map(old: RobotMap, new_cameras: dict[int, Camera], images: dict[int, np.ndarray],
-               config: MapConfig = MapConfig(), features=None) -> RobotMap:
-    """`old` with the photos at their localised `new_cameras` {index: Camera} added: their
-    SIFT features are matched with their stereo partners' (`stereo_pairs`, old or new
-    photos) and triangulated with the poses fixed; the new points join the old ones and the
-    mesh is rebuilt. `images` {index: image} holds at least every mapped photo's image;
-    `features(index)` returns a photo's cached `ibr.triangulation.Features` (else computed)."""
-    cameras = {**old.cameras, **new_cameras}
-    if not new_cameras:
-        return old
+@dataclass
+class Tracks:
+    """Triangulated SIFT tracks: points (N, 3) metres, colors (N, 3) uint8, seen_from (N, 3)
+    the centre of a camera that saw each point, descriptors (2N, 128) float32 of both features
+    of each point with owner (2N,) the point index (what `FeatureMap` localises against)."""
+
+    points: np.ndarray
+    colors: np.ndarray
+    seen_from: np.ndarray
+    descriptors: np.ndarray
+    owner: np.ndarray
+
+    @classmethod
+    def empty(cls) -> "Tracks":
+        return cls(np.zeros((0, 3)), np.zeros((0, 3), np.uint8), np.zeros((0, 3)), np.zeros((0, 128), np.float32),
+                   np.zeros(0, int))
+
+    def __add__(self, other: "Tracks") -> "Tracks":
+        return Tracks(np.vstack([self.points, other.points]), np.vstack([self.colors, other.colors]),
+                      np.vstack([self.seen_from, other.seen_from]),
+                      np.vstack([self.descriptors, other.descriptors]),
+                      np.r_[self.owner, other.owner + len(self.points)])
+
+
+def stereo_tracks(cameras: dict[int, Camera], features, cfg: TriangulationConfig,
+                  only: set[int] | None = None) -> Tracks:
+    """Tracks of the `stereo_pairs` of `cameras` {index: Camera} (only the pairs with a photo
+    in `only`, when given), the poses fixed; `features(index)` gives a photo's features."""
     order = np.array(sorted(cameras))
-    pairs = stereo_pairs([cameras[i] for i in order], config.triangulation.neighbours)
+    pairs = stereo_pairs([cameras[i] for i in order], cfg.neighbours)
     ids = order[pairs] if len(pairs) else np.zeros((0, 2), int)
-    ids = ids[np.isin(ids, list(new_cameras)).any(axis=1)]
+    if only is not None:
+        ids = ids[np.isin(ids, list(only)).any(axis=1)]
     used = sorted(set(ids.ravel().tolist()))
     if not used:
-        return RobotMap(cameras, old.points, old.colors, old.normals, old.mesh, old.registered)
-    get = features or (lambda i: sift_features(images[i], config.triangulation.n_features))
+        return Tracks.empty()
     local = {i: k for k, i in enumerate(used)}
     cams = [cameras[i] for i in used]
-    P, C, _, _, first = pair_tracks(cams, [get(i) for i in used], np.vectorize(local.get)(ids).reshape(-1, 2),
-                                    config.triangulation)
-    seen = np.array([cams[f].center for f in first]).reshape(-1, 3)
-    return _mesh_map(cameras, np.vstack([old.points, P]), np.vstack([old.colors, C]).astype(np.uint8),
-                     np.vstack([old.points + old.normals, seen]), config, old.registered)
+    P, C, D, O, first = pair_tracks(cams, [features(i) for i in used],
+                                    np.array([[local[a], local[b]] for a, b in ids]), cfg)
+    return Tracks(P, C, np.array([cams[f].center for f in first]).reshape(-1, 3), D, O)
+
+
+def extend_map(old: RobotMap, new_cameras: dict[int, Camera], tracks: Tracks,
+               config: MapConfig = MapConfig()) -> RobotMap:
+    """`old` with the photos at their localised `new_cameras` {index: Camera} and the points
+    of their `tracks` (`stereo_tracks` with the poses fixed) added; the mesh is rebuilt."""
+    cameras = {**old.cameras, **new_cameras}
+    if len(tracks.points) == 0:
+        return RobotMap(cameras, old.points, old.colors, old.normals, old.mesh, old.registered)
+    return _mesh_map(cameras, np.vstack([old.points, tracks.points]),
+                     np.vstack([old.colors, tracks.colors]).astype(np.uint8),
+                     np.vstack([old.points + old.normals, tracks.seen_from]), config, old.registered)
