@@ -12,7 +12,7 @@ import sys
 import time
 from pathlib import Path
 
-FIGURE_MODULES = ["ibr.bench", "ibr.bench_ulr", "explore.bench_vueplan", "explore.scenic_bench", "explore.bench_mission", "localization.bench"]
+FIGURE_MODULES = ["ibr.bench", "ibr.bench_ulr", "explore.bench_vueplan", "explore.scenic_bench", "explore.bench_mission", "localization.bench", "localization.bench_pnp"]
 
 
 def all_figures() -> dict:
