@@ -65,3 +65,13 @@ def sample_motion_model_odometry(poses: np.ndarray, odom_a: np.ndarray, odom_b: 
     motion the odometry reports between odometry poses odom_a and odom_b, with noise."""
     u = odometry_decomposition(odom_a, odom_b)
     return apply_odometry(poses, sample_odometry_noise(u, alphas, len(np.atleast_2d(poses)), rng))
+
+
+def sample_motion_model_random_walk(poses: np.ndarray, std: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Random-walk motion for when there is no odometry (a hand-held camera, Loc-NeRF's
+    prediction): every pose (N, 3) moves by zero-mean Gaussian noise with per-axis
+    standard deviation `std` (3,) = (m, m, rad) in the world frame; heading wrapped."""
+    poses = np.atleast_2d(poses).astype(np.float64)
+    out = poses + rng.normal(size=poses.shape) * np.asarray(std, dtype=np.float64)
+    out[:, 2] = wrap_angle(out[:, 2])
+    return out

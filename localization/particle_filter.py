@@ -33,7 +33,8 @@ import shapely
 from filterpy.monte_carlo import stratified_resample, systematic_resample
 from scipy.stats import norm
 
-from localization.motion_models import sample_motion_model_odometry, wrap_angle
+from localization.motion_models import (sample_motion_model_odometry, sample_motion_model_random_walk,
+                                        wrap_angle)
 
 
 @dataclass(frozen=True)
@@ -154,6 +155,10 @@ class ParticleFilter:
         """Move every particle by the odometry motion, with Thrun's noise model."""
         self.particles = sample_motion_model_odometry(self.particles, odom_before, odom_after,
                                                       self.config.alphas, self.rng)
+
+    def predict_random_walk(self, std: np.ndarray) -> None:
+        """Move every particle by a random walk with std (m, m, rad): no odometry."""
+        self.particles = sample_motion_model_random_walk(self.particles, std, self.rng)
 
     def update(self, loglik: np.ndarray, fit_loglik: np.ndarray | None = None) -> None:
         """Weight by per-particle log-likelihoods (N,) (possibly tempered); zero weight

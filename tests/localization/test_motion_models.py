@@ -27,3 +27,15 @@ def test_sampled_spread_follows_alphas():
     np.testing.assert_allclose(np.std(moved[:, 0]), 0.2, rtol=0.03)
     np.testing.assert_allclose(moved[:, 1:], 0, atol=1e-12)
     np.testing.assert_allclose(moved[:, 0].mean(), 1.0, atol=0.01)
+
+
+def test_random_walk_spread_and_wrap():
+    from localization.motion_models import sample_motion_model_random_walk
+
+    rng = np.random.default_rng(2)
+    start = np.tile([1.0, -2.0, np.pi - 0.01], (20000, 1))
+    moved = sample_motion_model_random_walk(start, [0.1, 0.3, 0.05], rng)
+    np.testing.assert_allclose(moved[:, :2].mean(axis=0), [1.0, -2.0], atol=0.01)
+    np.testing.assert_allclose(moved[:, :2].std(axis=0), [0.1, 0.3], rtol=0.03)
+    assert moved[:, 2].min() >= -np.pi and moved[:, 2].max() < np.pi  # wrapped
+    np.testing.assert_allclose(np.std(wrap_angle(moved[:, 2] - start[:, 2])), 0.05, rtol=0.03)

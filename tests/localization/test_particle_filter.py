@@ -4,6 +4,7 @@ import shapely
 from filterpy.monte_carlo import systematic_resample
 
 from localization.particle_filter import (ParticleFilter, ParticleFilterConfig, _numpy_random_from,
+                                          effective_sample_size,
                                           kld_sample_count, sample_free_poses, weighted_estimate)
 
 FREE = shapely.box(0, 0, 4, 2).difference(shapely.box(1, 0.5, 2, 1.5))
@@ -115,3 +116,41 @@ def test_averages_use_the_fit_likelihood_not_the_tempered_one():
     pf.update(np.zeros(len(pf.particles)), fit_loglik=np.full(len(pf.particles), -30.0))
     assert pf.w_fast == pytest.approx(w_fast * 0.5) and pf.w_slow == pytest.approx(w_slow * 0.95)
     np.testing.assert_allclose(pf.weights, 1 / len(pf.particles))  # weights from the tempered one
+
+
+@pytest.mark.parametrize("resampler", ["systematic", "stratified"])
+def test_resampling_is_triggered_by_effective_sample_size(resampler):
+    pf = ParticleFilter(FREE, ParticleFilterConfig(n_particles=400, resampler=resampler),
+                        np.random.default_rng(6))
+    pf.init_gaussian([3.0, 1.0, 0.0], [0.1, 0.1, 0.1])
+    pf.update(np.random.default_rng(0).normal(0, 0.1, 400))  # ESS ~ 0.99 N: keep
+    assert effective_sample_size(pf.log_w) > 0.9 * 400 and not pf.resample_if_needed()
+    heavy = np.where(np.arange(400) < 40, 0.0, -50.0)  # 40 particles carry the weight
+    pf.update(heavy, fit_loglik=np.zeros(400))  # the fit as before: no injection due
+    survivors = pf.particles[:40].copy()
+    assert effective_sample_size(pf.log_w) == pytest.approx(40, rel=0.02)  # earlier weights ~even
+    assert pf.resample_if_needed()
+    # every new particle is a roughened copy of one of the 40
+    d = np.abs(pf.particles[:, None, :2] - survivors[None, :, :2]).max(axis=2).min(axis=1)
+    assert d.max() < 6 * pf.config.roughening[0]
+    np.testing.assert_allclose(pf.weights, 1 / len(pf.particles))
+
+
+def test_estimate_covariance_and_best_particle():
+    rng = np.random.default_rng(7)
+    particles = np.c_[rng.normal(1.0, 0.2, 5000), rng.normal(-1.0, 0.1, 5000), rng.normal(0.3, 0.05, 5000)]
+    log_w = np.zeros(5000)
+    log_w[123] = 5.0
+    mean, cov, best = weighted_estimate(particles, log_w)
+    np.testing.assert_allclose(best, particles[123])
+    w = np.exp(log_w) / np.exp(log_w).sum()
+    np.testing.assert_allclose(mean[:2], w @ particles[:, :2])
+    np.testing.assert_allclose(np.sqrt(np.diag(cov)), [0.2, 0.1, 0.05], rtol=0.05)
+    assert abs(cov[0, 1]) < 0.002
+
+
+def test_random_walk_prediction_moves_particles():
+    pf = ParticleFilter(FREE, ParticleFilterConfig(n_particles=3000), np.random.default_rng(8))
+    pf.init_gaussian([3.0, 1.0, 0.0], [0.0, 0.0, 0.0])
+    pf.predict_random_walk(np.array([0.05, 0.05, 0.02]))
+    np.testing.assert_allclose(pf.particles.std(axis=0), [0.05, 0.05, 0.02], rtol=0.06)

@@ -79,3 +79,30 @@ def test_lean_renderer_batched_equals_reference_and_tracks_full_renderer(setup, 
     full.set_observation(observed, (64, 48))
     np.testing.assert_allclose(batched[:, 0], full.tile_scores(cams)[:, 0], atol=0.1)
     assert np.argmax(batched[:, 0] * batched[:, 2]) == 0  # still peaks at the truth
+
+
+def test_render_mcl_is_coarse_and_tempered_while_spread(setup, gl_ctx):
+    """RenderMCL compares at the coarse size while the particles are spread and at the full
+    size once they gather; its weights are the likelihood at temperature T (1 + k spread)."""
+    import shapely
+
+    from ibr.camera import Camera
+    from localization.particle_filter import ParticleFilter, ParticleFilterConfig
+    from localization.render_mcl import RenderMCL, RenderMCLConfig
+
+    office, observed, poses, cams, mount = setup
+    free = shapely.box(-2.8, -3.8, 2.8, 3.8)
+    lik = BatchedLikelihood(likelihood_renderer(office.mesh, gl_ctx, office.background), light=office.light)
+    camera = Camera(intrinsics_from_fov(60, 320, 240), 320, 240)
+    for spread, size in ((None, (32, 24)), (0.05, (64, 48))):
+        pf = ParticleFilter(free, ParticleFilterConfig(n_particles=200), np.random.default_rng(0))
+        pf.init_uniform() if spread is None else pf.init_gaussian(TRUE, [spread, spread, 0.02])
+        mcl = RenderMCL(pf, lik, camera, mount, RenderMCLConfig())
+        s = mcl.spread_m()
+        particles = pf.particles.copy()
+        assert mcl.measure(observed) == size
+        clip, eyes = se2_views(particles, camera.scaled(size[0] / 320), mount)
+        lik.set_observation(observed, size)
+        T = lik.config.temperature * (1 + mcl.config.temper_per_m * s)
+        expected = scores_to_loglik(lik.view_scores(clip, eyes), lik.config, T)
+        np.testing.assert_allclose(pf.log_w - pf.log_w.max(), expected - expected.max(), atol=1e-3)
