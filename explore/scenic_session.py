@@ -2,7 +2,8 @@
 from one stereo pair, then every frame i) plan (goal from the SMC cost space, then the
 scenic planner with opportunistic collaboration, or a PRM / RRT* baseline to the same goal),
 ii) move every moving camera to the first pose of its plan and photograph the synthetic
-world, iii) reconstruct the new stereo pairs into the map, iv) re-weight and resample the
+world, iii) reconstruct the new stereo pairs into the map (the collaborative pair, if the
+agents chose to collaborate, and each moved camera's SfM pair with its own previous view), iv) re-weight and resample the
 SMC particles, v) score the reconstruction against the world's ground-truth mesh.
 """
 
@@ -151,12 +152,11 @@ class ScenicSession:
         mode, mover, nxt, plans = self.plan(goals)
         images = [self._photo(q) if not np.allclose(q, p) else im
                   for q, p, im in zip(nxt, self.poses, self.images)]
-        if mode == COLLABORATIVE:
+        if mode == COLLABORATIVE:  # the collaborative stereo pair with the agent holding still
             stay = 1 - mover
             self._reconstruct(nxt[stay], images[stay], nxt[mover], images[mover])
-        else:
-            for a in range(len(nxt)):
-                self._reconstruct(self.poses[a], self.images[a], nxt[a], images[a])
+        for a in range(len(nxt)):  # every camera that moved also pairs with its own last view (SfM)
+            self._reconstruct(self.poses[a], self.images[a], nxt[a], images[a])
         self.prev, self.poses, self.images = self.poses, nxt, images
         self.space.update(self.map)
         self.frame += 1
