@@ -140,7 +140,7 @@ def eval_ibr(args: argparse.Namespace) -> int:
     Path(args.json).write_text(text)
     for m, r in result["methods"].items():
         print(f"{m:17s} PSNR {r['psnr_mean']:6.2f} dB  SSIM {r['ssim_mean']:.3f}  coverage {r['coverage_mean']:.3f}"
-              f"  PSNR on common pixels {r['psnr_common_mean']:6.2f} dB")
+              f"  PSNR on common pixels {r['psnr_common_mean']:6.2f} dB, exposure-matched {r['psnr_exposure_mean']:6.2f} dB")
     return 0
 
 

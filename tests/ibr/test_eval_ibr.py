@@ -11,7 +11,7 @@ from PIL import Image
 
 from ibr import render_cli
 from ibr.errors import InputError
-from ibr.eval_ibr import psnr, ssim
+from ibr.eval_ibr import exposure_matched, psnr, ssim
 
 SCENE = "synthetic:office?views=16&width=96&height=72"
 
@@ -48,6 +48,7 @@ def test_eval_ibr_writes_leave_one_out_json(gl_ctx, tmp_path):
     for m in ("ulr", "nearest"):  # (the office's outward-looking ring defeats the light field's net)
         r = result["methods"][m]
         assert r["coverage_mean"] > 0.1 and r["psnr_mean"] > 12.0 and 0.0 < r["ssim_mean"] <= 1.0
+        assert r["psnr_exposure_mean"] >= r["psnr_mean"] - 0.1   # a fitted gain cannot hurt much
     assert result["methods"]["ulr"]["coverage_mean"] > result["methods"]["nearest"]["coverage_mean"]
 
 
@@ -98,3 +99,14 @@ def test_bad_eval_arguments_fail_before_any_work(tmp_path):
         _run("eval-ibr", "/nonexistent/scene", "--json", tmp_path / "missing" / "e.json")
     with pytest.raises(InputError, match="--frames 0"):
         _run("render", "/nonexistent/scene", "--path", "a", "b", "--frames", 0, "--out", tmp_path / "f")
+
+
+def test_exposure_matching_takes_out_a_gain_only():
+    rng = np.random.default_rng(1)
+    photo = rng.integers(20, 200, (30, 40, 3)).astype(np.uint8)
+    darker = np.round(photo * np.array([0.8, 0.85, 0.9])).astype(np.uint8)
+    mask = np.ones((30, 40), bool)
+    assert psnr(darker, photo, mask) < 25.0
+    assert psnr(exposure_matched(darker, photo, mask), photo, mask) > 45.0
+    shuffled = darker[rng.permutation(30)]                   # wrong content stays wrong
+    assert psnr(exposure_matched(shuffled, photo, mask), photo, mask) < 15.0
