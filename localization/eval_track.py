@@ -3,8 +3,9 @@ render-likelihood particle filter localises it from its photos and odometry alon
 simulator's truth is used only to score. Optionally the robot is kidnapped (teleported
 without its sensors knowing) mid-run, and the steps the filter needs to recover counted.
 
-The map the filter renders is the world's ground-truth textured mesh, lit like the photos:
-a perfect image-based model, so this measures the filter, not the model.
+The map the filter renders is the world's ground-truth textured mesh, lit like the photos
+(through the likelihood's lean renderer: trilinear texture filtering where the photos use
+anisotropic): a near-perfect image-based model, so this measures the filter, not the model.
 """
 
 from __future__ import annotations
