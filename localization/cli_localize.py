@@ -83,8 +83,21 @@ def localize(args: argparse.Namespace) -> int:
 
 def eval_loc(args: argparse.Namespace) -> int:
     scene = load_scene(args.scene)
+    ibr_viz.rerun_setup(args, "ibrnav_eval_loc", "eval_loc.rrd")
+
+    def on_trial(i, held, res, row):
+        rr.set_time("step", sequence=i)
+        viz.log_camera_pose("world/truth", held.camera, held.image)
+        if res.cam_from_world is not None:
+            viz.log_camera_pose("world/estimate", camera_at(held.camera, res.cam_from_world))
+        if res.particles is not None:
+            viz.log_pose6_particles(res.particles[:, :3], res.weights)
+        rr.log("plots/position_error_m", rr.Scalars(min(row["position_m"], 10.0)))
+        rr.log("plots/rotation_error_deg", rr.Scalars(min(row["rotation_deg"], 180.0)))
+
     out = evaluate_localization(scene, args.method, args.trials or len(scene), args.spread_m, args.spread_deg,
-                                args.seed, LocConfig(), say)
+                                args.seed, LocConfig(), say, on_trial)
+    ibr_viz.rerun_teardown(args)
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=2) + "\n")
     print(json.dumps({k: v for k, v in out.items() if k != "per_trial"}, indent=2))

@@ -44,8 +44,9 @@ class LocConfig:
     """Share and spread of the PnP proposal."""
     features: FeatureLocalizerConfig = field(default_factory=FeatureLocalizerConfig)
     """The feature map and PnP."""
-    model: str = "proxy"
-    """What the filter renders: "proxy" (from the photos, `build_proxy`) or "mesh" (the scene's own)."""
+    model: str = "auto"
+    """What the filter renders: "proxy" (from the photos, `build_proxy`), "mesh" (the scene's
+    own, e.g. a synthetic world's) or "auto" (the scene's mesh when it has one, else the proxy)."""
     max_faces: int = 4000
     """Triangles of the lean model the filter renders (decimated)."""
     success_m: float = 0.05
@@ -85,11 +86,16 @@ class SceneLocalizer:
             self.feature_map = FeatureMap.from_features(scene.cameras, feats, config.features)
         if method in ("pf", "hybrid"):
             self.mesh = lean_mesh(self._model_mesh(), config.max_faces)
-            light = getattr(scene.world, "light", None) if config.model == "mesh" else None
+            light = getattr(scene.world, "light", None) if self._use_mesh() else None
             self.likelihood = BatchedLikelihood(likelihood_renderer(self.mesh, ctx), LikelihoodConfig(), light)
 
+    def _use_mesh(self) -> bool:
+        return self.config.model == "mesh" or (self.config.model == "auto" and self.scene.mesh is not None)
+
     def _model_mesh(self):
-        if self.config.model == "mesh":
+        if self.config.model not in ("auto", "mesh", "proxy"):
+            raise LocalizeError(f"unknown model {self.config.model!r}; use auto, mesh or proxy")
+        if self._use_mesh():
             if self.scene.mesh is None:
                 raise LocalizeError(f"scene {self.scene.name!r} has no mesh; use the proxy model")
             return self.scene.mesh
@@ -134,10 +140,12 @@ def draw_prior(truth: np.ndarray, spread_m: float, spread_deg: float, rng: np.ra
 
 def evaluate_localization(scene: Scene, method: str, trials: int, spread_m: float, spread_deg: float,
                           seed: int, config: LocConfig = LocConfig(),
-                          progress: Callable[[str], None] | None = None) -> dict:
+                          progress: Callable[[str], None] | None = None,
+                          on_trial: Callable | None = None) -> dict:
     """Leave-one-out: trial i queries view i mod len(scene) against a map of the others,
     from a prior drawn around its true pose (seed + i). Returns the JSON-ready summary
-    (median_position_m, median_rotation_deg, success_rate, seconds_per_query) and per-trial rows."""
+    (median_position_m, median_rotation_deg, success_rate, seconds_per_query) and per-trial rows.
+    on_trial(i, held_view, LocResult, row) is called after each trial (for logging)."""
     if method not in METHODS:
         raise LocalizeError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
     if len(scene) < 3:
@@ -168,6 +176,8 @@ def evaluate_localization(scene: Scene, method: str, trials: int, spread_m: floa
                      "seconds": res.seconds, "n_inliers": res.n_inliers,
                      "success": bool(pos < config.success_m and rot < config.success_deg)})
         say(f"[{i + 1}/{trials}] {held.name}: {pos:.4f} m, {rot:.3f} deg, {res.seconds:.2f} s")
+        if on_trial:
+            on_trial(i, held, res, rows[-1])
     return {"scene": scene.name, "method": method, "trials": trials, "spread_m": spread_m,
             "spread_deg": spread_deg, "seed": seed, **summarise(rows), "per_trial": rows}
 
