@@ -34,7 +34,7 @@ from explore.path_simplify import plan_path
 from explore.view_quality import ViewQuality, ViewQualityConfig
 from ibr.camera import Camera
 from ibr.errors import InputError
-from ibr.triangulation import TriangulationConfig
+from ibr.triangulation import TriangulationConfig, sift_features
 from localization.feature_localizer import FeatureLocalizerConfig, FeatureMap
 from localization.motion_models import wrap_angle
 from robot.initial_map import MapConfig, RobotMap, extend_map, initial_map, stereo_tracks
@@ -173,8 +173,7 @@ class AdaptiveMission:
 
     # --- localisation -------------------------------------------------------------------
     def _feats(self, i: int):
-        from ibr.triangulation import sift_features
-
+        """SIFT features of photo i (computed once per mission)."""
         if i not in self._features:
             self._features[i] = sift_features(self.photos[i].photo.image, self.config.localizer.triangulation.n_features)
         return self._features[i]
