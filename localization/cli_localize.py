@@ -10,11 +10,11 @@ from pathlib import Path
 
 import numpy as np
 import rerun as rr
+from scipy.spatial.transform import Rotation
 
 from ibr import viz as ibr_viz
 from ibr.camera import Camera
 from ibr.errors import InputError
-from ibr.mesh_renderer import MeshRenderer
 from ibr.scene import load_scene, read_image
 from localization import viz
 from localization.eval_loc import METHODS, LocConfig, SceneLocalizer, evaluate_localization
@@ -71,10 +71,9 @@ def localize(args: argparse.Namespace) -> int:
     est = camera_at(camera, res.cam_from_world)
     viz.log_camera_pose("world/estimate", est, image)
     if loc.likelihood is not None:
-        viz.log_observed_vs_rendered(image, MeshRenderer(loc.mesh).render(est).color)
+        viz.log_observed_vs_rendered(image, loc.likelihood.model.render(est).color)
     ibr_viz.rerun_teardown(args)
-    rv = __import__("scipy.spatial.transform", fromlist=["Rotation"]).Rotation.from_matrix(
-        est.world_from_cam[:3, :3]).as_rotvec()
+    rv = Rotation.from_matrix(est.world_from_cam[:3, :3]).as_rotvec()
     print(json.dumps({"query": args.query, "method": args.method, "seconds": round(res.seconds, 3),
                       "center_m": est.center.round(4).tolist(), "rotvec_deg": np.degrees(rv).round(3).tolist(),
                       "cam_from_world": est.cam_from_world.round(6).tolist(), "n_inliers": res.n_inliers}, indent=2))
@@ -111,7 +110,7 @@ def register(subparsers) -> None:
     p.add_argument("--method", choices=METHODS, default="hybrid")
     p.add_argument("--intrinsics-of", help="scene view whose intrinsics the query shares (default: the first)")
     p.add_argument("--prior", help="x,y,z,rx,ry,rz: camera centre (m) and rotation vector of "
-                   "world_from_cam (deg); default: around every map photo")
+                   "world_from_cam (deg), e.g. --prior=-7,-7,0.2,-90,20,0; default: around every map photo")
     p.add_argument("--spread", default="1.0,30", help="M,DEG: prior spread (default 1.0,30)")
     p.add_argument("--seed", type=int, default=0)
     ibr_viz.add_rerun_args(p)
