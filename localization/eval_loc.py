@@ -23,7 +23,7 @@ from ibr.triangulation import Features, sift_features
 from localization.feature_localizer import FeatureLocalizerConfig, FeatureMap, pose_errors
 from localization.hybrid import HybridConfig, localize_hybrid
 from localization.lean_model import lean_mesh
-from localization.pose6_filter import Pose6Filter, Pose6FilterConfig, sample_around
+from localization.pose6_filter import Pose6Filter, Pose6FilterConfig, cam_from_world_of, sample_around
 from localization.render_likelihood import BatchedLikelihood, LikelihoodConfig, likelihood_renderer
 
 METHODS = ("pf", "pnp", "hybrid")
@@ -134,7 +134,6 @@ class SceneLocalizer:
 
 def draw_prior(truth: np.ndarray, spread_m: float, spread_deg: float, rng: np.random.Generator) -> np.ndarray:
     """A prior pose (4, 4) drawn uniformly within +-spread_m per axis and spread_deg of `truth`."""
-    from localization.pose6_filter import cam_from_world_of
     return cam_from_world_of(sample_around(truth, 1, spread_m, np.radians(spread_deg), rng))[0]
 
 
