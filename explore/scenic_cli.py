@@ -19,6 +19,7 @@ from explore.scenic_cost import NBVConfig
 from explore.scenic_map import MapConfig
 from explore.scenic_planner import PlannerConfig
 from explore.scenic_pose import CameraModel
+from explore.scenic_reconstruction import StereoConfig
 from explore.scenic_session import PLANNERS, ScenicSession, SessionConfig
 from explore.scenic_smc import SMCConfig
 from ibr import viz as ibr_viz
@@ -53,7 +54,8 @@ def session_config(args: argparse.Namespace) -> SessionConfig:
         nbv=NBVConfig(gamma=args.gamma),
         smc=SMCConfig(n_particles=args.particles),
         plan=dataclasses.replace(PlannerConfig(), max_nodes=args.nodes),
-        prm=PRMConfig(n_samples=args.nodes), rrt=RRTStarConfig(max_nodes=args.nodes))
+        prm=PRMConfig(n_samples=args.nodes), rrt=RRTStarConfig(max_nodes=args.nodes),
+        stereo=StereoConfig(matcher=args.matcher))
 
 
 def scenic(args: argparse.Namespace) -> int:
@@ -112,6 +114,8 @@ def register(subparsers) -> None:
     p.add_argument("--voxel", type=float, default=0.1, help="voxel edge (metres)")
     p.add_argument("--particles", type=int, default=300, help="SMC particles")
     p.add_argument("--nodes", type=int, default=250, help="tree / roadmap size limit")
+    p.add_argument("--matcher", choices=("dense", "sift"), default="dense",
+                   help="stereo matches: dense bidirectional flow or sparse SIFT")
     p.add_argument("--inlier-distance", type=float, default=0.05, help="d_i of the metrics (metres)")
     p.add_argument("--gt-samples", type=int, default=20000, help="ground-truth surface samples")
     ibr_viz.add_rerun_args(p)

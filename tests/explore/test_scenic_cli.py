@@ -11,11 +11,11 @@ TINY = ["--frames", "2", "--width", "160", "--height", "120", "--particles", "40
         "--nodes", "40", "--gt-samples", "2000"]
 
 
-@pytest.mark.parametrize("agents,planner", [(2, "scenic"), (1, "rrtstar")])
-def test_tiny_run_writes_metrics(tmp_path, agents, planner):
+@pytest.mark.parametrize("agents,planner,matcher", [(2, "scenic", "dense"), (1, "rrtstar", "sift")])
+def test_tiny_run_writes_metrics(tmp_path, agents, planner, matcher):
     out, rrd = tmp_path / "scenic.json", tmp_path / "scenic.rrd"
     assert main(["synthetic:office", "--agents", str(agents), "--planner", planner, "--seed", "1",
-                 "--json", str(out), "--save", str(rrd), *TINY]) == 0
+                 "--matcher", matcher, "--json", str(out), "--save", str(rrd), *TINY]) == 0
     result = json.loads(out.read_text())
     assert set(result) == {"per_frame", "final"}
     frames = result["per_frame"]
