@@ -132,8 +132,7 @@ class ParticleFilter:
         self.log_w = np.zeros(0)
         self.w_slow = self.w_fast = 0.0
         self.n_injected = 0
-        self.reinitialised = False
-        """Whether the last resampling step was a global re-initialisation."""
+        self.reinitialised = False  # whether the last resampling step re-initialised globally
 
     # --- initialisation -----------------------------------------------------------
     def init_uniform(self, n: int | None = None) -> None:
