@@ -10,6 +10,7 @@ import sys
 from dataclasses import dataclass
 from typing import Callable
 
+import cv2
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
@@ -76,6 +77,9 @@ class EvalConfig:
     """Evaluate only the first this many held-out views (0 = all)."""
     k: int = 4
     """Sources blended per pixel by ULR."""
+    scale: float = 1.0
+    """Render and compare at this fraction of the photos' resolution (the held-out photo is
+    area-downsampled; the proxy and the sources stay at full resolution)."""
 
 
 def make_renderers(sources: Scene, mesh, methods, k: int) -> dict:
@@ -126,20 +130,29 @@ def evaluate_scene(scene: Scene, cfg: EvalConfig = EvalConfig(),
         sources = scene.without(held.name)
         say(f"[{n + 1}/{len(views)}] {held.name}: proxy from {len(sources)} photos")
         mesh = proxy_mesh(sources, cfg.proxy)
+        camera, photo = at_scale(held.camera, held.image, cfg.scale)
         renders = {}
         for m, r in make_renderers(sources, mesh, cfg.methods, cfg.k).items():
-            renders[m] = r.render(held.camera)
+            renders[m] = r.render(camera)
             r.release()
         common = np.logical_and.reduce([covered for _, covered in renders.values()])
         for m, (image, covered) in renders.items():
-            row = {"view": held.name, "psnr": psnr(image, held.image, covered),
-                   "ssim": ssim(image, held.image, covered), "coverage": float(covered.mean()),
-                   "psnr_common": psnr(image, held.image, common),
-                   "psnr_exposure": psnr(exposure_matched(image, held.image, covered), held.image, covered)}
+            row = {"view": held.name, "psnr": psnr(image, photo, covered),
+                   "ssim": ssim(image, photo, covered), "coverage": float(covered.mean()),
+                   "psnr_common": psnr(image, photo, common),
+                   "psnr_exposure": psnr(exposure_matched(image, photo, covered), photo, covered)}
             per[m].append(row)
             say(f"    {m:17s} PSNR {row['psnr']:6.2f} dB  SSIM {row['ssim']:.3f}  coverage {row['coverage']:.3f}"
                 f"  (PSNR {row['psnr_common']:6.2f} dB on the {common.mean():.3f} all methods cover)")
     return {"scene": scene.name, "proxy": cfg.proxy, "methods": {m: summarise(rows) for m, rows in per.items()}}
+
+
+def at_scale(camera, image: np.ndarray, scale: float):
+    """The camera at `scale` x its resolution and its photo (H, W, 3) uint8 area-resampled to it."""
+    if scale == 1.0:
+        return camera, image
+    cam = camera.scaled(scale)
+    return cam, cv2.resize(image, (cam.width, cam.height), interpolation=cv2.INTER_AREA)
 
 
 def summarise(rows: list[dict]) -> dict:

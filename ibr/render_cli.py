@@ -129,12 +129,14 @@ def eval_ibr(args: argparse.Namespace) -> int:
         raise RenderArgsError(f"--k {args.k}: must be in 1..{MAX_K}")
     if args.max_views < 0:
         raise RenderArgsError(f"--max-views {args.max_views}: must be >= 0")
+    if not 0 < args.scale <= 1:
+        raise RenderArgsError(f"--scale {args.scale}: must be in (0, 1]")
     out = Path(args.json)
     if out.is_dir() or not out.parent.is_dir():
         raise RenderArgsError(f"--json {out}: not a writable file path (folder missing or a folder given)")
     scene = load_scene(args.scene)
     cfg = EvalConfig(methods=tuple(m.replace("-", "_") for m in args.methods), proxy=args.proxy,
-                     max_views=args.max_views, k=args.k)
+                     max_views=args.max_views, k=args.k, scale=args.scale)
     result = evaluate_scene(scene, cfg, stderr_progress)
     text = json.dumps(json_safe(result), indent=2, allow_nan=False)
     Path(args.json).write_text(text)
@@ -181,6 +183,8 @@ def register(subparsers) -> None:
                    help="proxy from the other photos (default), plus plane-sweep points, or the scene's mesh")
     e.add_argument("--max-views", type=int, default=0, help="evaluate only the first N views (0 = all)")
     e.add_argument("--k", type=int, default=4, help="sources blended per pixel by ULR (default 4)")
+    e.add_argument("--scale", type=float, default=1.0,
+                   help="render and compare at this fraction of the photos' resolution (default 1)")
     e.set_defaults(func=eval_ibr)
 
     f = subparsers.add_parser("sfm", help="pose unposed photos (FOLDER/images) with COLMAP via pycolmap")

@@ -110,3 +110,16 @@ def test_exposure_matching_takes_out_a_gain_only():
     assert psnr(exposure_matched(darker, photo, mask), photo, mask) > 45.0
     shuffled = darker[rng.permutation(30)]                   # wrong content stays wrong
     assert psnr(exposure_matched(shuffled, photo, mask), photo, mask) < 15.0
+
+
+def test_eval_at_half_resolution_compares_like_sized_images(gl_ctx):
+    from ibr.eval_ibr import EvalConfig, evaluate_scene
+    from ibr.scene import load_scene
+
+    scene = load_scene(SCENE)
+    full, half = (evaluate_scene(scene, EvalConfig(methods=("ulr",), proxy="mesh", max_views=1, scale=s))
+                  for s in (1.0, 0.5))
+    f, h = full["methods"]["ulr"], half["methods"]["ulr"]
+    assert abs(f["coverage_mean"] - h["coverage_mean"]) < 0.05 and h["psnr_mean"] > 12.0
+    with pytest.raises(InputError, match="--scale 0"):
+        _run("eval-ibr", SCENE, "--json", "/tmp/unused.json", "--scale", 0)
