@@ -96,4 +96,8 @@ def rerun_setup(args: argparse.Namespace, app_id: str, default_save: str | None)
 
 
 def rerun_teardown(args: argparse.Namespace) -> None:
+    """End the recording: rerun's own teardown, then flush and close the sinks, so a
+    `.rrd` is complete (footer included) when the command returns, also when the command
+    ran in-process (a notebook, a test) rather than as its own process."""
     rr.script_teardown(args)
+    rr.disconnect()
