@@ -177,7 +177,7 @@ def register(subparsers) -> None:
     e = subparsers.add_parser("eval-ibr", help="leave-one-out PSNR/SSIM/coverage of the renderers")
     e.add_argument("scene", help="a Strecha folder, a COLMAP model folder or synthetic:NAME[?...]")
     e.add_argument("--json", required=True, help="write the results here")
-    e.add_argument("--methods", nargs="+", choices=[m.replace("_", "-") for m in METHODS] + list(METHODS),
+    e.add_argument("--methods", nargs="+", choices=list(dict.fromkeys([m.replace("_", "-") for m in METHODS] + list(METHODS))),
                    default=list(METHODS))
     e.add_argument("--proxy", choices=("photos", "dense", "mesh"), default="photos",
                    help="proxy from the other photos (default), plus plane-sweep points, or the scene's mesh")
