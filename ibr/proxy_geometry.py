@@ -20,6 +20,8 @@ repeated renders do not recompute them.
 from __future__ import annotations
 
 import hashlib
+import os
+import stat
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -60,15 +62,26 @@ class Proxy:
 
 
 def cache_dir(scene: Scene) -> Path:
-    """Where derived data of `scene` is cached (created on demand)."""
-    base = Path(scene.root) / ".ibrnav_cache" if scene.root is not None else \
-        Path(tempfile.gettempdir()) / "ibrnav_cache"
+    """Where derived data of `scene` is cached (created on demand): `.ibrnav_cache` beside
+    the scene, or the temp dir when the scene folder is read-only. Read-only means its mode
+    has no owner write bit, so a shared data set stays untouched even for root (who may
+    write anywhere). Entries are keyed by `scene_key`, so scenes never share one."""
+    temp = Path(tempfile.gettempdir()) / "ibrnav_cache"
+    root = Path(scene.root) if scene.root is not None else None
+    base = root / ".ibrnav_cache" if root is not None and _writable(root) else temp
     try:
         base.mkdir(parents=True, exist_ok=True)
-    except OSError:  # read-only data folder: fall back to the temp dir
-        base = Path(tempfile.gettempdir()) / "ibrnav_cache"
+    except OSError:
+        base = temp
         base.mkdir(parents=True, exist_ok=True)
     return base
+
+
+def _writable(folder: Path) -> bool:
+    try:
+        return bool(folder.stat().st_mode & stat.S_IWUSR) and os.access(folder, os.W_OK)
+    except OSError:
+        return False
 
 
 def scene_key(scene: Scene, cfg: ProxyConfig) -> str:
