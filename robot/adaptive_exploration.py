@@ -10,9 +10,11 @@ From the map of the photos so far (`robot.initial_map`), each round:
    `AdaptiveConfig.min_gain_rad`;
 4. drives to each goal: a KDE navigation grid from the above-ground map points, A* and path
    simplification (`explore.nav_grid`, `explore.path_simplify`); the robot follows the path by
-   target-node switching within `switch_m`, on compass-aided dead reckoning between nodes and
-   *vision* at the nodes (SIFT + RANSAC PnP against the map, `localization.feature_localizer`):
-   the plan consumes the localiser's estimate, never a simulator's truth. On an obstacle it
+   target-node switching within `switch_m` on the estimate of an SE(2) particle filter
+   (`robot.mission_localizer`): odometry and compass between nodes, *vision* at the nodes
+   (SIFT + RANSAC PnP against the map, `localization.feature_localizer`, as a mixture
+   proposal), and an extra photo when the filter's spread grows too large: the plan
+   consumes the filter's estimate, never a simulator's truth. On an obstacle it
    backs off, drives a little off the path and re-plans; after `max_obstacles` obstacles it
    gives the goal up and takes the next;
 5. photographs at each goal, localises those photos, and rebuilds the map with them
@@ -37,6 +39,7 @@ from ibr.errors import InputError
 from ibr.triangulation import TriangulationConfig, sift_features
 from localization.feature_localizer import FeatureLocalizerConfig, FeatureMap
 from localization.motion_models import wrap_angle
+from robot.mission_localizer import FilteredBody, MissionFilterConfig, MissionLocalizer
 from robot.initial_map import MapConfig, RobotMap, extend_map, initial_map, stereo_tracks
 from robot.protocol import Photo, Robot, robot_camera
 from robot.random_exploration import Body, RandomExplorationConfig, random_exploration
@@ -92,18 +95,22 @@ class AdaptiveConfig:
     """SIFT + RANSAC PnP localiser against the map (its map's features are cached per photo)."""
     map: MapConfig = field(default_factory=MapConfig)
     """Map building (SfM, triangulation, Poisson)."""
+    filter: MissionFilterConfig = field(default_factory=MissionFilterConfig)
+    """The particle filter of path following."""
 
 
 @dataclass
 class MissionPhoto:
     """A photo of the mission: `photo`; `estimate` (3,) the robot's pose estimate when it was
     taken; `stage` "random", "goal" or "localise" (taken to localise, not part of the model);
-    `camera` its posed camera once SfM or PnP posed it (None: unposed)."""
+    `camera` its posed camera once SfM or PnP posed it (None: unposed); `dead_reckoning` (3,)
+    the compass-aided dead-reckoning pose then (the baseline the filter is compared with)."""
 
     photo: Photo
     estimate: np.ndarray
     stage: str
     camera: Camera | None = None
+    dead_reckoning: np.ndarray | None = None
 
 
 class MissionObserver:
@@ -111,6 +118,7 @@ class MissionObserver:
 
     def photo(self, mp: MissionPhoto) -> None: ...
     def estimate(self, pose: np.ndarray, source: str) -> None: ...
+    def particles(self, particles: np.ndarray, weights: np.ndarray) -> None: ...
     def map(self, robot_map: RobotMap, free_space) -> None: ...
     def candidates(self, poses: np.ndarray, scores: np.ndarray, goals: np.ndarray) -> None: ...
     def grid(self, grid) -> None: ...
@@ -191,38 +199,52 @@ class AdaptiveMission:
         return np.array([world_from_robot[0, 3], world_from_robot[1, 3],
                          np.arctan2(world_from_robot[1, 0], world_from_robot[0, 0])])
 
-    def localise_photo(self, photo: Photo) -> Camera | None:
-        """PnP pose of a photo against the map, if it passes the sanity checks."""
+    def localise_photo(self, photo: Photo):
+        """PnP result (`PnPResult`) of a photo against the map if it passes the sanity
+        checks (camera height; within `max_fix_jump_m` of the estimate, or 3 spreads), else None."""
         c = self.config
         res = self.fmap.localize(photo.image, self.template) if len(self.fmap) >= c.localizer.min_inliers else None
         if res is not None:
             centre = np.linalg.inv(res.cam_from_world)[:3, 3]
             pose = self.pose_of_camera(res.cam_from_world)
             if (abs(centre[2] - self.cam_height) < c.max_fix_height_err_m
-                    and np.hypot(*(pose[:2] - self.body.est.pose[:2])) < c.max_fix_jump_m):
+                    and np.hypot(*(pose[:2] - self.body.est.pose[:2])) < max(c.max_fix_jump_m, 3 * self._spread())):
                 self.fixes += 1
-                return res.camera
+                return res
         self.failed += 1
         return None
 
+    def _spread(self) -> float:
+        return self.body.est.spread_m if isinstance(self.body, FilteredBody) else 0.0
+
     def take_photo(self, stage: str) -> MissionPhoto:
-        """Capture, localise by vision; a good fix replaces the dead-reckoning estimate. A
-        goal photo that cannot be localised is posed at the dead-reckoning estimate."""
+        """Capture, localise by vision: a good fix is the particle filter's measurement (a
+        plain `Body` takes it as its estimate). A goal photo is posed by its fix, or, when
+        PnP failed, at the filter's estimate."""
         photo = self.robot.capture()
-        cam = self.localise_photo(photo)
-        fixed = cam is not None
-        if fixed:
-            self.body.est.pose = self.pose_of_camera(cam.cam_from_world)
-        elif stage == "goal":
+        res = self.localise_photo(photo)
+        fixed = res is not None
+        cam = res.camera if fixed else None
+        if fixed and isinstance(self.body, FilteredBody):
+            self.body.est.update_pnp(self.pose_of_camera(res.cam_from_world), res.n_inliers)
+        elif fixed:
+            self.body.est.pose = self.pose_of_camera(res.cam_from_world)
+        if not fixed and stage == "goal":
             cam = robot_camera(self.body.est.pose, self.robot.intrinsics, self.robot.image_size,
                                self.robot.cam_from_robot)
         if cam is not None:
             cam = cam.with_pose(cam.cam_from_world, name=f"photo_{len(self.photos):05d}")
-        mp = MissionPhoto(photo, self.body.est.pose.copy(), stage, cam)
+        dr = self.body.est.dead_reckoning.pose.copy() if isinstance(self.body, FilteredBody) else None
+        mp = MissionPhoto(photo, self.body.est.pose.copy(), stage, cam, dr)
         self.photos.append(mp)
         self.obs.photo(mp)
         self.obs.estimate(self.body.est.pose, "pnp" if fixed else "odometry")
+        self.log_particles()
         return mp
+
+    def log_particles(self) -> None:
+        if isinstance(self.body, FilteredBody):
+            self.obs.particles(self.body.est.pf.particles, self.body.est.pf.weights)
 
     # --- goals ----------------------------------------------------------------------------
     def choose_goals(self) -> tuple[np.ndarray, float, object]:
@@ -295,6 +317,9 @@ class AdaptiveMission:
                     self._recover(motion)
                     blocked = True
                     break
+                self.log_particles()
+                if isinstance(self.body, FilteredBody) and self.body.est.needs_fix():
+                    self.take_photo("localise")  # the filter's spread grew: look before going on
             if not blocked:
                 return legs < c.max_legs_per_goal
             self.take_photo("localise")
@@ -334,6 +359,21 @@ class AdaptiveMission:
         self.fmap = self._feature_map()
 
 
+def start_filter(robot: Robot, body: Body, photos: list[MissionPhoto], rmap: RobotMap,
+                 config: AdaptiveConfig, rng: np.random.Generator) -> FilteredBody:
+    """The adaptive stage's body: the particle filter starts at the last random photo's SfM
+    pose when SfM posed it (the robot has not moved since), else at the dead reckoning."""
+    last = len(photos) - 1
+    start, std = body.est.pose, None
+    if last in rmap.cameras:
+        w2r = rmap.cameras[last].world_from_cam @ robot.cam_from_robot
+        start = np.array([w2r[0, 3], w2r[1, 3], np.arctan2(w2r[1, 0], w2r[0, 0])])
+        std = np.array([0.1, 0.1, np.radians(3.0)])
+    xy = np.array([c.center[:2] for c in rmap.cameras.values()] or [start[:2]])
+    loc = MissionLocalizer(start, np.r_[xy, start[None, :2]], config.filter, rng, std)
+    return FilteredBody(robot, loc, body.path_m)
+
+
 def run_mission(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budget: int,
                 config: AdaptiveConfig = AdaptiveConfig(), rng: np.random.Generator | None = None,
                 observer: MissionObserver | None = None,
@@ -362,7 +402,8 @@ def run_mission(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budge
     obs.progress(f"initial map: {rmap.registered}/{len(photos)} photos posed, {len(rmap.points)} points, "
                  f"{len(rmap.mesh.faces)} faces")
     result = MissionResult(photos, rmap)
-    mission = AdaptiveMission(robot, body, photos, rmap, config, rng, obs)
+    mission = AdaptiveMission(robot, start_filter(robot, body, photos, rmap, config, rng), photos, rmap,
+                              config, rng, obs)
     mission.take_photo("localise")
     result.stop_reason = "max rounds"
     for r in range(config.max_rounds):

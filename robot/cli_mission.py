@@ -58,9 +58,11 @@ class RecordingObserver(MissionObserver):
         self.cov, self.n_model, self.step = coverage, 0, 0
         self.sim = isinstance(robot, SimRobot)
         self.coverage_curve: list[tuple[int, float]] = []
+        self.errors: list[tuple[float, float]] = []  # (filter, dead reckoning) position errors (m)
 
     def _truth(self, photo_index: int):
-        return self.robot.truth[photo_index]["pose"] if self.sim else None
+        """The simulator's true pose when photo `photo_index` was just taken (evaluation only)."""
+        return self.robot.true_pose.copy() if self.sim else None
 
     def photo(self, mp: MissionPhoto) -> None:
         if self.session is not None:
@@ -72,6 +74,9 @@ class RecordingObserver(MissionObserver):
             if self.cov is not None:
                 cam = robot_camera(truth, self.robot.intrinsics, self.robot.image_size, self.robot.cam_from_robot)
                 self.coverage_curve.append((self.n_model, self.cov.add(cam)))
+        if truth is not None and mp.dead_reckoning is not None:
+            self.errors.append((float(np.hypot(*(mp.estimate[:2] - truth[:2]))),
+                                float(np.hypot(*(mp.dead_reckoning[:2] - truth[:2])))))
         if truth is not None and self.session is not None:  # simulator only: ground truth, for evaluation
             self.session.append("evaluation", time_s=mp.photo.time_s, true_pose=truth, estimate=mp.estimate,
                                 model_photos=self.n_model,
@@ -87,6 +92,8 @@ class RecordingObserver(MissionObserver):
         loc_viz.log_estimate(mp.estimate)
         if truth is not None:
             loc_viz.log_estimate_error(mp.estimate, truth)
+            if mp.dead_reckoning is not None:
+                robot_viz.log_dead_reckoning_error(mp.dead_reckoning, truth)
         if self.coverage_curve and mp.stage != "localise":
             robot_viz.log_coverage(*self.coverage_curve[-1])
 
@@ -95,6 +102,18 @@ class RecordingObserver(MissionObserver):
             self.session.append("estimate", pose=pose, source=source)
         if self.log:
             loc_viz.log_estimate(pose)
+
+    def particles(self, particles, weights) -> None:
+        if self.log:
+            loc_viz.log_particles(particles, weights)
+            if self.sim:
+                loc_viz.log_estimate_error(self._filter_mean(particles, weights), self.robot.true_pose)
+
+    @staticmethod
+    def _filter_mean(particles, weights):
+        from localization.particle_filter import weighted_estimate
+
+        return weighted_estimate(particles, np.log(np.maximum(weights, 1e-300)))[0]
 
     def map(self, robot_map, free_space) -> None:
         if self.session is not None:
@@ -221,12 +240,23 @@ def explore_cmd(args: argparse.Namespace) -> int:
               "path_length_m": result.path_m, "coverage_curve": [list(p) for p in obs.coverage_curve],
               "rounds": result.rounds, "goals_reached": len(result.goals), "goals_given_up": result.given_up,
               "pnp_fixes": result.fixes, "pnp_failures": result.failed_fixes, "stop_reason": result.stop_reason,
+              "localisation_error_m": _error_summary(obs.errors),
               "seconds": time.perf_counter() - progress.t0}
     if args.json:
         Path(args.json).write_text(json.dumps(report, indent=1))
     print(f"{args.strategy}: coverage {report['coverage']:.3f} with {report['photos']} photos, "
           f"path {report['path_length_m']:.1f} m ({report['seconds']:.0f} s)")
     return 0
+
+
+def _error_summary(errors: list[tuple[float, float]]) -> dict | None:
+    """Mean and max position error (m) of the filter and of dead reckoning at the adaptive
+    stage's photos (simulator truth)."""
+    if not errors:
+        return None
+    e = np.array(errors)
+    return {"photos": len(e), "filter_mean": float(e[:, 0].mean()), "filter_max": float(e[:, 0].max()),
+            "dead_reckoning_mean": float(e[:, 1].mean()), "dead_reckoning_max": float(e[:, 1].max())}
 
 
 def _mission_args(p: argparse.ArgumentParser, photos_default: int) -> None:

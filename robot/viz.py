@@ -59,3 +59,8 @@ def log_coverage(n_photos: int, coverage: float) -> None:
 def log_tour_frame(camera: Camera, image: np.ndarray) -> None:
     """One frame of the virtual tour at `world/tour/camera`."""
     log_camera("world/tour/camera", camera, image)
+
+
+def log_dead_reckoning_error(dead_reckoning: np.ndarray, truth: np.ndarray) -> None:
+    """plots/dead_reckoning_error_m: the baseline's position error, beside the filter's."""
+    rr.log("plots/dead_reckoning_error_m", rr.Scalars(float(np.hypot(*(dead_reckoning[:2] - truth[:2])))))

@@ -9,7 +9,8 @@ import shapely
 
 from explore.candidates import sample_candidates
 from ibr.synthetic import make_world
-from robot.adaptive_exploration import AdaptiveConfig, AdaptiveMission, MissionObserver, MissionPhoto, pick_goals
+from robot.adaptive_exploration import (AdaptiveConfig, AdaptiveMission, MissionObserver, MissionPhoto, pick_goals,
+                                        start_filter)
 from robot.coverage import surface_samples
 from robot.initial_map import RobotMap
 from robot.protocol import MotionResult, robot_camera
@@ -21,10 +22,13 @@ START = np.array([-1.5, -2.5, 0.0])
 
 class Recorder(MissionObserver):
     def __init__(self):
-        self.estimates, self.paths = [], []
+        self.estimates, self.paths, self.particle_sets = [], [], []
 
     def estimate(self, pose, source):
         self.estimates.append((pose.copy(), source))
+
+    def particles(self, particles, weights):
+        self.particle_sets.append(particles.copy())
 
     def path(self, xy):
         self.paths.append(xy)
@@ -46,7 +50,9 @@ def mission(seed=0) -> tuple[AdaptiveMission, SimRobot, Recorder]:
                     np.full((6000, 3), 128, np.uint8), s.normals, world.mesh, len(photos))
     obs = Recorder()
     cfg = AdaptiveConfig(n_candidates=120)
-    return AdaptiveMission(robot, body, photos, rmap, cfg, np.random.default_rng(2), obs), robot, obs
+    rng = np.random.default_rng(2)
+    body = start_filter(robot, body, photos, rmap, cfg, rng)  # the particle filter from here on
+    return AdaptiveMission(robot, body, photos, rmap, cfg, rng, obs), robot, obs
 
 
 @pytest.fixture(scope="module")
@@ -86,6 +92,9 @@ def test_goes_to_a_goal_on_the_localisers_estimate(office):
     assert np.hypot(*(robot.true_pose[:2] - goal[:2])) < 0.4
     assert m.fixes > fixes and obs.paths
     assert any(src == "pnp" for _, src in obs.estimates)
+    # the filter's particles were reported on the way; its estimate is the one followed
+    assert len(obs.particle_sets) > 2 and np.array_equal(m.body.est.pose, m.body.est.mean)
+    assert np.hypot(*(m.body.est.pose[:2] - robot.true_pose[:2])) < 0.3
     shots = m.capture_at(goal, budget=2)
     assert np.hypot(*(shots[1].estimate[:2] - shots[0].estimate[:2])) > 0.25  # a stereo side step
     assert [p.stage for p in shots] == ["goal", "goal"] and all(p.camera is not None for p in shots)

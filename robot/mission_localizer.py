@@ -1,0 +1,161 @@
+"""The capture mission's localiser: SE(2) Monte Carlo localisation on odometry, compass and
+vision fixes, so path following consumes a filter's estimate, never the simulator's truth.
+
+- Prediction: every move of the robot moves the particles by the odometry with Thrun's
+  sample_motion_model_odometry (Probabilistic Robotics, Table 5.6, alpha1..4;
+  `localization.particle_filter.ParticleFilter.predict`), then weights them by the compass
+  heading (Gaussian, `compass_sigma_rad`).
+- Measurement at waypoints: the SIFT + RANSAC PnP fix of a photo against the map
+  (`localization.feature_localizer`) as a Mixture-MCL step (Thrun, Fox, Burgard & Dellaert,
+  "Robust Monte Carlo localization for mobile robots", 2001; the same idea as
+  `localization.hybrid`'s PnP proposal): a fraction `pnp_fraction` of the particles is drawn
+  around the PnP robot pose, the others keep their prior; the prior particles are weighted
+  by the PnP likelihood (Gaussian in x, y, theta with sigmas shrinking as 1/sqrt(inliers),
+  plus an outlier floor), the drawn ones by the predicted belief's density at them (a
+  Gaussian fit of the predicted particles: the dual's importance weight); each part is
+  normalised and mixed in the ratio of its size.
+- When PnP fails the filter carries on with odometry alone and its spread grows;
+  `needs_fix()` says when the spread is large enough to stop for an extra photo.
+A `CompassDeadReckoning` is kept beside the filter only as the baseline it is compared with.
+Frames: world SE(2) (x, y, theta), metres, radians.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+
+from localization.dead_reckoning import CompassDeadReckoning
+from localization.motion_models import wrap_angle
+from localization.particle_filter import ParticleFilter, ParticleFilterConfig
+from robot.protocol import MotionResult, Robot
+from robot.random_exploration import Body
+
+
+@dataclass(frozen=True)
+class MissionFilterConfig:
+    """Settings of the mission's particle filter."""
+
+    n_particles: int = 400
+    """Particles at the start (KLD-sampling adapts the count between 150 and 1500)."""
+    alphas: tuple[float, float, float, float] = (0.05, 0.005, 0.05, 0.005)
+    """Odometry noise alpha1..4 of the prediction (above the simulator's, as on a real robot)."""
+    init_std: tuple[float, float, float] = (0.3, 0.3, np.radians(8.0))
+    """Spread of the particles around the start pose (m, m, rad)."""
+    compass_sigma_rad: float = np.radians(5.0)
+    """Compass likelihood's standard deviation per move (rad); 0: compass not used."""
+    pnp_fraction: float = 0.2
+    """Fraction of the particles drawn around the PnP pose at a fix."""
+    pnp_sigma_xy_m: float = 0.6
+    """PnP position sigma = this / sqrt(inliers), at least `pnp_min_sigma_xy_m` (m)."""
+    pnp_min_sigma_xy_m: float = 0.04
+    """Smallest PnP position sigma (m)."""
+    pnp_sigma_theta_rad: float = np.radians(12.0)
+    """PnP heading sigma = this / sqrt(inliers), at least 0.5 degrees (rad)."""
+    pnp_outlier_loglik: float = -12.0
+    """Log-likelihood floor of the PnP measurement (a wrong fix cannot zero every particle)."""
+    relocalise_std_m: float = 0.25
+    """`needs_fix` when the position spread (sqrt of the largest eigenvalue) exceeds this (m)."""
+    margin_m: float = 3.0
+    """The filter's map prior: the box around the mapped cameras grown by this (m)."""
+
+
+class MissionLocalizer:
+    """The particle filter plus the dead-reckoning baseline. `pose`: the filter's estimate (3,)."""
+
+    def __init__(self, start: np.ndarray, bounds_xy: np.ndarray, config: MissionFilterConfig,
+                 rng: np.random.Generator, start_std: np.ndarray | None = None):
+        self.config = config
+        lo, hi = np.min(bounds_xy, axis=0) - config.margin_m, np.max(bounds_xy, axis=0) + config.margin_m
+        # alpha_fast == alpha_slow: no random injection, no global re-initialisation (the
+        # robot is never kidnapped, and a box prior would scatter particles through walls)
+        pf_cfg = ParticleFilterConfig(n_particles=config.n_particles, n_min=150, n_max=1500,
+                                      alphas=config.alphas, alpha_slow=0.1, alpha_fast=0.1, reinit_ratio=0.0,
+                                      roughening=(0.01, 0.01, np.radians(0.5)))
+        self.pf = ParticleFilter(shapely.box(*lo, *hi), pf_cfg, rng)
+        self.pf.init_gaussian(np.asarray(start, float), np.asarray(config.init_std if start_std is None else start_std))
+        self.dead_reckoning = CompassDeadReckoning(np.asarray(start, float).copy())
+        self._update_estimate()
+
+    def _update_estimate(self) -> None:
+        self.mean, self.cov, _ = self.pf.estimate()
+
+    @property
+    def pose(self) -> np.ndarray:
+        return self.mean.copy()
+
+    @property
+    def spread_m(self) -> float:
+        """Position spread: sqrt of the largest eigenvalue of the x, y covariance (m)."""
+        return float(np.sqrt(max(np.linalg.eigvalsh(self.cov[:2, :2]).max(), 0.0)))
+
+    def needs_fix(self) -> bool:
+        return self.spread_m > self.config.relocalise_std_m
+
+    # --- the filter steps -------------------------------------------------------------
+    def predict(self, odom_before: np.ndarray, odom_after: np.ndarray, compass_rad: float) -> None:
+        """A move: odometry prediction, then the compass heading likelihood."""
+        self.dead_reckoning.update(odom_before, odom_after, compass_rad)
+        self.pf.predict(odom_before, odom_after)
+        if self.config.compass_sigma_rad > 0:
+            d = wrap_angle(self.pf.particles[:, 2] - compass_rad)
+            self.pf.update(-0.5 * (d / self.config.compass_sigma_rad) ** 2)
+            self.pf.resample_if_needed()
+        self._update_estimate()
+
+    def pnp_sigmas(self, n_inliers: int) -> np.ndarray:
+        c = self.config
+        s = 1.0 / np.sqrt(max(n_inliers, 1))
+        return np.array([max(c.pnp_sigma_xy_m * s, c.pnp_min_sigma_xy_m)] * 2
+                        + [max(c.pnp_sigma_theta_rad * s, np.radians(0.5))])
+
+    def pnp_loglik(self, particles: np.ndarray, fix: np.ndarray, sigmas: np.ndarray) -> np.ndarray:
+        """Log-likelihood (N,) of the PnP robot pose `fix` (3,) at each particle (N, 3)."""
+        d = particles - fix
+        d[:, 2] = wrap_angle(d[:, 2])
+        return np.logaddexp(-0.5 * np.sum((d / sigmas) ** 2, axis=1), self.config.pnp_outlier_loglik)
+
+    def update_pnp(self, fix: np.ndarray, n_inliers: int) -> None:
+        """The Mixture-MCL measurement step for a PnP robot pose `fix` (3,) (module docstring)."""
+        pf, rng = self.pf, self.pf.rng
+        n = len(pf.particles)
+        m = max(1, int(round(self.config.pnp_fraction * n)))
+        sig = self.pnp_sigmas(n_inliers)
+        keep = np.sort(rng.choice(n, n - m, replace=False))
+        prior, prior_w = pf.particles[keep], pf.log_w[keep]
+        drawn = fix + rng.normal(size=(m, 3)) * sig
+        drawn[:, 2] = wrap_angle(drawn[:, 2])
+        # prior part: weight x PnP likelihood
+        a = prior_w + self.pnp_loglik(prior, fix, sig)
+        # drawn part: the predicted belief's density (Gaussian fit, floored so a confident but
+        # wrong prior cannot veto the fix entirely)
+        mean, cov = self.mean, self.cov + np.diag([0.05**2, 0.05**2, np.radians(2) ** 2])
+        d = drawn - mean
+        d[:, 2] = wrap_angle(d[:, 2])
+        b = -0.5 * np.einsum("ni,ij,nj->n", d, np.linalg.inv(cov), d)
+        b = np.logaddexp(b, -12.0)
+        a = a - np.logaddexp.reduce(a) + np.log((n - m) / n)
+        b = b - np.logaddexp.reduce(b) + np.log(m / n)
+        pf.particles, pf.log_w = np.r_[prior, drawn], np.r_[a, b]
+        pf.update(np.zeros(n))  # the map prior (and normalisation)
+        pf.resample_if_needed()
+        self._update_estimate()
+
+
+class FilteredBody(Body):
+    """A `Body` whose estimate (`est.pose`) is the mission localiser's: every move predicts
+    the filter (and the dead-reckoning baseline, `localizer.dead_reckoning`)."""
+
+    def __init__(self, robot: Robot, localizer: MissionLocalizer, path_m: float = 0.0):
+        self.robot, self.est, self.path_m, self.bumps = robot, localizer, path_m, 0
+
+    def move(self, turn: float = 0.0, drive: float = 0.0) -> MotionResult:
+        before = self.robot.odometry()
+        motion = self.robot.turn(turn) if turn else self.robot.drive(drive)
+        after = self.robot.odometry()
+        self.est.predict(before, after, self.robot.compass())
+        self.path_m += float(np.hypot(*(after[:2] - before[:2])))
+        self.bumps += motion.blocked
+        return motion

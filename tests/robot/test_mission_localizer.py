@@ -1,0 +1,59 @@
+"""The mission's particle filter (robot.mission_localizer) while a simulated robot follows a
+path on the filter's own estimate: PnP-like fixes at the waypoints (the true pose plus known
+noise; every third one fails), odometry and compass between them."""
+
+import numpy as np
+
+from ibr.synthetic import loop_route, make_world
+from localization.motion_models import wrap_angle
+from robot.mission_localizer import FilteredBody, MissionFilterConfig, MissionLocalizer
+from robot.sim_robot import SimRobot, SimRobotConfig
+
+
+def follow(seed: int):
+    world = make_world("office", 0)
+    route = loop_route(world)
+    start = np.array([*route[0], 0.0])
+    robot = SimRobot(world, SimRobotConfig(image_size=(24, 16), alphas=(0.03, 0.003, 0.06, 0.003)),
+                     np.random.default_rng(seed), start_pose=tuple(start))
+    rng = np.random.default_rng(seed + 100)
+    loc = MissionLocalizer(start, route, MissionFilterConfig(), rng, np.array([0.05, 0.05, 0.02]))
+    body = FilteredBody(robot, loc)
+    errors, spreads = [], []
+    for lap in range(2):
+        for k, wp in enumerate(np.r_[route[1:], route[:1]]):
+            for _ in range(8):  # legs of at most 0.6 m, re-aimed on the estimate
+                d = wp - body.est.pose[:2]
+                if np.hypot(*d) < 0.2:
+                    break
+                body.move(turn=float(wrap_angle(np.arctan2(d[1], d[0]) - body.est.pose[2])))
+                body.move(drive=float(min(0.6, np.hypot(*d))))
+            spreads.append(loc.spread_m)
+            fixed = (k + lap) % 3 != 2
+            if fixed:  # a PnP fix: the true pose with 5 cm / 1 degree noise, 60 inliers
+                fix = robot.true_pose + rng.normal(size=3) * [0.05, 0.05, np.radians(1)]
+                loc.update_pnp(fix, 60)
+            errors.append((fixed, np.hypot(*(loc.pose[:2] - robot.true_pose[:2])),
+                           np.hypot(*(loc.dead_reckoning.pose[:2] - robot.true_pose[:2]))))
+    return np.array(errors), np.array(spreads), body
+
+
+def test_filter_tracks_the_path_and_beats_dead_reckoning():
+    for seed in (0, 1):
+        errors, spreads, body = follow(seed)
+        assert body.path_m > 30  # two laps of the office loop
+        fixed, err, dr = errors[:, 0] == 1, errors[:, 1], errors[:, 2]
+        assert err[fixed].max() < 0.15, err  # after a fix: within 15 cm of the truth
+        assert err[~fixed].max() < 0.5, err  # ~5 m on odometry alone since the last fix
+        assert err.mean() < 0.5 * dr.mean(), errors.mean(0)  # dead reckoning drifts
+        assert spreads.max() > 2 * spreads.min()  # the spread grows on odometry and shrinks at fixes
+
+
+def test_pnp_fix_pulls_a_wrong_estimate_back():
+    """A prior 0.6 m off: the mixture proposal's particles around the fix take over."""
+    rng = np.random.default_rng(3)
+    loc = MissionLocalizer(np.array([0.6, 0.0, 0.0]), np.zeros((1, 2)), MissionFilterConfig(), rng,
+                           np.array([0.05, 0.05, 0.02]))
+    for _ in range(2):
+        loc.update_pnp(np.array([0.0, 0.0, 0.05]), 100)
+    assert np.hypot(*loc.pose[:2]) < 0.1 and abs(loc.pose[2] - 0.05) < np.radians(3)
