@@ -57,7 +57,7 @@ def open_robot(args: argparse.Namespace, world, start: np.ndarray):
         elif photos_dir:
             source = FolderPhotoSource(photos_dir)
         else:
-            raise InputError("--robot nxt:PORT needs --photos DIR (the camera card's folder) or --camera DEVICE")
+            raise InputError("--robot nxt:PORT needs --photo-dir DIR (the camera card's folder) or --camera DEVICE")
         yield stack.enter_context(NXTRobot(port, NXTRobotConfig(image_size=(args.width, args.height)), source))
 
 
@@ -122,7 +122,8 @@ def register(subparsers) -> None:
     p.add_argument("--height", type=int, default=240, help="camera image height (px)")
     p.add_argument("--robot", default="sim", help="'sim', or 'nxt:PORT' for a LEGO NXT on a serial port "
                    "(nxt:emulator: the built-in emulated brick)")
-    p.add_argument("--photos", default=None, help="with nxt: the folder the camera's photos arrive in")
+    p.add_argument("--photo-dir", "--photos", dest="photos", default=None,
+                   help="with nxt: the folder the camera's photos arrive in")
     p.add_argument("--camera", default=None, help="with nxt: an OpenCV capture device (index, file or pattern)")
     p.add_argument("--session", default=None, help="capture-session folder: every photo, reading and estimate "
                    "is written there as it happens; an interrupted session resumes")
