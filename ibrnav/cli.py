@@ -11,14 +11,13 @@ from ibr import cli as ibr_cli
 from ibr import render_cli
 from ibr.errors import InputError
 from ibr.gl import GLContextError
-from localization import cli as localization_cli
 from localization import cli_localize
 from ibrnav import bench
 from robot import cli as robot_cli
-from robot import cli_mission, cli_robot
+from robot import cli_eval_track, cli_mission, cli_robot
 
 
-PACKAGE_CLIS = (ibr_cli, render_cli, localization_cli, cli_localize, vueplan_cli, scenic_cli, robot_cli, cli_robot, cli_mission, bench)
+PACKAGE_CLIS = (ibr_cli, render_cli, cli_localize, cli_eval_track, vueplan_cli, scenic_cli, robot_cli, cli_robot, cli_mission, bench)
 
 
 def build_parser() -> argparse.ArgumentParser:

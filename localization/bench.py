@@ -2,31 +2,24 @@
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
+from ibr.bench import best_seconds
 from ibr.camera import Camera, intrinsics_from_fov
 from ibr.synthetic import make_world
 from localization.particle_filter import sample_free_poses
-from localization.pose_views import se2_views
-from localization.render_likelihood import (BatchedLikelihood, LikelihoodConfig, likelihood_renderer,
-                                            luminance, reference_tile_scores, scores_to_loglik)
-from robot.protocol import forward_camera_mount, robot_camera
+from localization.pose_views import forward_camera_mount, robot_camera, se2_views
+from localization.render_likelihood import (
+    BatchedLikelihood,
+    LikelihoodConfig,
+    likelihood_renderer,
+    luminance,
+    reference_tile_scores,
+    scores_to_loglik,
+)
 
 N_PARTICLES = 512
 SIZE = (64, 48)
-
-
-def _best_seconds(fn, repeats: int) -> float:
-    """Least wall time (s) of `repeats` calls of fn(), after one warm-up call."""
-    fn()
-    best = np.inf
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t)
-    return best
 
 
 def particle_likelihoods_per_s_64x48() -> dict:
@@ -48,8 +41,8 @@ def particle_likelihoods_per_s_64x48() -> dict:
     clip, eyes = se2_views(poses, template, mount, renderer.near, renderer.far)
     cams = [robot_camera(p, K, (320, 240), mount).scaled(SIZE[0] / 320) for p in poses]
     observed = luminance(photo, SIZE)
-    batched = N_PARTICLES / _best_seconds(lambda: lik(clip, eyes), repeats=3)
-    naive = N_PARTICLES / _best_seconds(
+    batched = N_PARTICLES / best_seconds(lambda: lik(clip, eyes), repeats=3)
+    naive = N_PARTICLES / best_seconds(
         lambda: scores_to_loglik(reference_tile_scores(renderer, cams, observed, world.light), config), repeats=1)
     return {"value": batched, "unit": "likelihoods/s", "baseline": naive, "ratio": batched / naive}
 

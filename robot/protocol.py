@@ -13,7 +13,8 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from ibr.camera import Camera, rigid
+from localization.pose_views import forward_camera_mount, robot_camera, se2_matrix  # noqa: F401  (re-exported: the
+# geometry of a robot pose and its camera mount lives below the robot package, for the filters)
 
 
 @dataclass(frozen=True)
@@ -65,29 +66,3 @@ class Robot(Protocol):
     def bumpers(self) -> tuple[bool, bool]: ...
     def capture(self) -> Photo: ...
     def stop(self) -> None: ...
-
-
-def se2_matrix(pose: np.ndarray) -> np.ndarray:
-    """4x4 `world_from_robot` of an SE(2) pose (x, y, theta) on the floor (z = 0)."""
-    x, y, th = pose
-    c, s = np.cos(th), np.sin(th)
-    return rigid(np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]]), [x, y, 0.0])
-
-
-def forward_camera_mount(height_m: float, forward_m: float = 0.05,
-                         tilt_down_rad: float = 0.0) -> np.ndarray:
-    """`cam_from_robot` of a camera `height_m` above the floor, `forward_m` ahead of the
-    axle, looking along the robot's x axis, pitched down by `tilt_down_rad`."""
-    c, s = np.cos(tilt_down_rad), np.sin(tilt_down_rad)
-    # camera axes in robot coordinates: x_cam = -y_robot, z_cam = x_robot pitched down
-    z = np.array([c, 0, -s])
-    x = np.array([0, -1.0, 0])
-    robot_from_cam = rigid(np.stack([x, np.cross(z, x), z], axis=1), [forward_m, 0, height_m])
-    return np.linalg.inv(robot_from_cam)
-
-
-def robot_camera(robot_pose: np.ndarray, K: np.ndarray, size: tuple[int, int],
-                 cam_from_robot: np.ndarray, name: str = "") -> Camera:
-    """The world `Camera` of a robot at SE(2) pose `robot_pose`."""
-    robot_from_world = np.linalg.inv(se2_matrix(robot_pose))
-    return Camera(K, size[0], size[1], cam_from_robot @ robot_from_world, name)

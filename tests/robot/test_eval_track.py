@@ -6,8 +6,8 @@ import pytest
 from rerun.chunk import RrdReader
 
 from ibr.errors import InputError
-from localization import cli
-from localization.eval_track import TrackConfig, run_tracking, steps_to_localise
+from robot import cli_eval_track as cli
+from robot.eval_track import TrackConfig, run_tracking, steps_to_localise
 
 
 def test_steps_to_localise_needs_a_held_fix():

@@ -16,7 +16,7 @@ from ibr import viz as ibr_viz
 from ibr.errors import InputError
 from ibr.synthetic import make_world
 from localization import viz
-from localization.eval_track import TrackConfig, run_tracking
+from robot.eval_track import TrackConfig, run_tracking
 from robot import viz as robot_viz
 from robot.protocol import robot_camera
 
