@@ -4,22 +4,30 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
+
 from ibr.synthetic import make_world
 
 N_VIEWS = 256
 
 
+def best_seconds(fn, repeats: int = 3, warm_up: bool = True) -> float:
+    """Least wall time (s) of `repeats` calls of fn(), after one untimed warm-up call
+    (shader compilation, first uploads) unless warm_up is False. Every bench module times
+    with this, so figures and baselines are measured alike."""
+    if warm_up:
+        fn()
+    best = np.inf
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t)
+    return best
+
+
 def _rate(fn, n_items: int, repeats: int = 3) -> float:
     """Best items/s of `repeats` timed calls of fn() (after one warm-up call)."""
-    fn()
-    best = min(_timed(fn) for _ in range(repeats))
-    return n_items / best
-
-
-def _timed(fn) -> float:
-    t = time.perf_counter()
-    fn()
-    return time.perf_counter() - t
+    return n_items / best_seconds(fn, repeats)
 
 
 def mesh_views_per_s_64x48() -> dict:

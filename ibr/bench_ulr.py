@@ -6,22 +6,12 @@ frame, given the surface points for free."""
 from __future__ import annotations
 
 import dataclasses
-import time
 
 import numpy as np
 
+from ibr.bench import best_seconds
 from ibr.scene import load_scene
 from ibr.ulr import UlrRenderer, fill_depth_holes, ulr_blend_numpy
-
-
-def _best_seconds(fn, repeats: int) -> float:
-    fn()  # warm-up (shader compilation, first upload)
-    best = np.inf
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t)
-    return best
 
 
 def ulr_fps_640x480_10src() -> dict:
@@ -34,13 +24,13 @@ def ulr_fps_640x480_10src() -> dict:
     sources = dataclasses.replace(scene, views=scene.views[5:10] + scene.views[11:16])
     renderer = UlrRenderer(sources, scene.mesh, k=4)
     cam = held.camera
-    gl_s = _best_seconds(lambda: renderer.render_frame(cam), repeats=5)
+    gl_s = best_seconds(lambda: renderer.render_frame(cam), repeats=5)
     view_depth = fill_depth_holes(renderer.proxy_depth(cam))
     z = np.abs(view_depth).ravel()
     m = z > 0
     P = cam.unproject(cam.pixel_grid()[m], z[m])
     images = np.stack([v.image for v in sources.views])
-    numpy_s = _best_seconds(lambda: ulr_blend_numpy(
+    numpy_s = best_seconds(lambda: ulr_blend_numpy(
         P, view_depth.ravel()[m] > 0, cam.center, renderer.sources.matrices, renderer.sources.centres,
         images, renderer.source_depths, renderer.cfg), repeats=1)
     renderer.release()

@@ -6,12 +6,12 @@ other ten photos (leave-one-out) and is not timed."""
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from ibr.bench import best_seconds
 from ibr.errors import InputError
 from ibr.scene import load_scene
 from localization.feature_localizer import FeatureMap
@@ -28,15 +28,6 @@ class BruteForceFeatureMap(FeatureMap):
         self.matcher.add([np.ascontiguousarray(descriptors, np.float32)])
 
 
-def _best_seconds(fn, repeats: int) -> float:
-    best = np.inf
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t)
-    return best
-
-
 def pnp_s_per_query() -> dict:
     """PnP seconds per query (fountain-P11, 0005.jpg held out), KD-tree index vs brute force."""
     if not FOUNTAIN.is_dir():
@@ -48,8 +39,8 @@ def pnp_s_per_query() -> dict:
     for m in (fmap, naive):  # both must actually localise the photo
         if m.localize(held.image, held.camera) is None:
             raise RuntimeError("PnP failed on fountain-P11 0005.jpg")
-    fast = _best_seconds(lambda: fmap.localize(held.image, held.camera), repeats=3)
-    slow = _best_seconds(lambda: naive.localize(held.image, held.camera), repeats=3)
+    fast = best_seconds(lambda: fmap.localize(held.image, held.camera), repeats=3, warm_up=False)
+    slow = best_seconds(lambda: naive.localize(held.image, held.camera), repeats=3, warm_up=False)
     return {"value": fast, "unit": "s/query", "baseline": slow, "ratio": slow / fast}
 
 
