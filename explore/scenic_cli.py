@@ -75,7 +75,6 @@ def scenic(args: argparse.Namespace) -> int:
               f"{m['coverage']:.4f}, outliers {m['outlier_ratio']:.3f}, error "
               f"{m['mean_error_m'] * 100:.2f} cm, {reports[-1].n_points} points, "
               f"{time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
-    viz_scenic.finish_recording()
     ibr_viz.rerun_teardown(args)
     per_frame = [{"frame": r.frame, **r.metrics} for r in reports]
     result = {"per_frame": per_frame, "final": dict(per_frame[-1])}

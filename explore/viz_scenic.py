@@ -54,12 +54,3 @@ def log_metrics(metrics: dict) -> None:
     """Coverage, outlier ratio and mean inlier error as scalars under plots/."""
     for key, value in metrics.items():
         rr.log(f"plots/{key}", rr.Scalars(value))
-
-
-def finish_recording() -> None:
-    """Flush everything logged so far to the sink (the .rrd file, a viewer) and wait for it:
-    rerun writes from a background thread, so without this a file read right after the
-    command returns may hold only part of the recording."""
-    rec = rr.get_global_data_recording()
-    if rec is not None:
-        rec.flush()
