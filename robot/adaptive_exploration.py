@@ -374,26 +374,41 @@ def start_filter(robot: Robot, body: Body, photos: list[MissionPhoto], rmap: Rob
     return FilteredBody(robot, loc, body.path_m)
 
 
-def run_mission(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budget: int,
-                config: AdaptiveConfig = AdaptiveConfig(), rng: np.random.Generator | None = None,
-                observer: MissionObserver | None = None,
-                random_config: RandomExplorationConfig | None = None) -> MissionResult:
-    """The whole capture mission: random exploration (`n_random` photos), the initial map,
-    then adaptive rounds until the best candidate's gain is below `config.min_gain_rad`, the
-    model holds `photo_budget` photos, or `config.max_rounds`. `start_pose` (3,) is known."""
-    rng = rng or np.random.default_rng(0)
-    obs = observer or MissionObserver()
-    if n_random > photo_budget:
-        raise InputError(f"{n_random} random photos exceed the photo budget of {photo_budget}")
-    body = Body(robot, start_pose)
-    photos: list[MissionPhoto] = []
-    rcfg = replace(random_config or RandomExplorationConfig(), n_photos=n_random)
-    for shot in random_exploration(robot, start_pose, rcfg, rng, body):
+def _random_stage(robot: Robot, start_pose: np.ndarray, n_random: int, rcfg: RandomExplorationConfig,
+                  rng: np.random.Generator, obs: MissionObserver, journal) -> tuple[list[MissionPhoto], Body]:
+    """Random exploration up to `n_random` photos, after those the journal kept (replayed on
+    a simulator, checked; a real robot goes on from its last logged estimate)."""
+    photos = journal.resumed_photos(lambda r, ph: MissionPhoto(ph, np.asarray(r["pose"], float), "random"))
+    skip, start, path_m = len(photos), start_pose, 0.0
+    if skip and not journal.replayable:
+        state = journal.last_state() or {}
+        start, path_m = np.asarray(state.get("estimate", photos[-1].estimate), float), state.get("path_m", 0.0)
+        rcfg, skip = replace(rcfg, n_photos=n_random - len(photos)), 0
+    else:
+        rcfg = replace(rcfg, n_photos=n_random)
+    body = Body(robot, start)
+    body.path_m = path_m
+    if len(photos):
+        obs.progress(f"random exploration: resuming after {len(photos)} logged photos")
+    for k, shot in enumerate(random_exploration(robot, start, rcfg, rng, body) if len(photos) < n_random
+                             or journal.replayable else ()):
+        if k < skip:
+            journal.check_replay(photos[k], shot)
+            continue
         photos.append(MissionPhoto(shot.photo, shot.estimate, "random"))
         obs.photo(photos[-1])
         obs.estimate(shot.estimate, "odometry")
+        journal.random_photo_done(body)
         if len(photos) % 10 == 0:
             obs.progress(f"random exploration: {len(photos)}/{n_random} photos, {body.path_m:.1f} m driven")
+    return photos, body
+
+
+def _start_adaptive(robot: Robot, start_pose: np.ndarray, n_random: int, rcfg: RandomExplorationConfig,
+                    config: AdaptiveConfig, rng: np.random.Generator, obs: MissionObserver,
+                    journal) -> tuple[AdaptiveMission, MissionResult]:
+    """Random exploration, the initial map and the first vision fix; committed as round 0."""
+    photos, body = _random_stage(robot, start_pose, n_random, rcfg, rng, obs, journal)
     obs.progress(f"initial map: SfM of {len(photos)} photos")
     rmap = initial_map([p.photo.image for p in photos], robot.intrinsics, np.array([p.estimate for p in photos]),
                        np.array([p.photo.compass_rad for p in photos]), robot.cam_from_robot, config.map)
@@ -405,8 +420,56 @@ def run_mission(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budge
     mission = AdaptiveMission(robot, start_filter(robot, body, photos, rmap, config, rng), photos, rmap,
                               config, rng, obs)
     mission.take_photo("localise")
+    journal.round_done(mission, result)
+    return mission, result
+
+
+def _resume_adaptive(robot: Robot, state: dict, config: AdaptiveConfig, rng: np.random.Generator,
+                     obs: MissionObserver, journal) -> tuple[AdaptiveMission, MissionResult]:
+    """The adaptive stage as committed after `state["rounds"]` rounds (`robot.mission_journal`)."""
+    from robot.mission_journal import restore_adaptive
+
+    rmap, cams = journal.load_map(state)
+    photos = journal.resumed_photos(lambda r, ph: MissionPhoto(ph, np.asarray(r["pose"], float), r["stage"],
+                                                               cams.get(int(r["index"]))))
+    xy = np.array([c.center[:2] for c in rmap.cameras.values()])
+    loc = MissionLocalizer(np.asarray(state["dead_reckoning"], float), xy, config.filter, rng)
+    loc.pf.particles, loc.pf.log_w = np.asarray(state["particles"], float), np.asarray(state["log_w"], float)
+    loc._update_estimate()
+    restore_adaptive(journal, state, robot, rng)  # after the filter's set-up drew from rng
+    mission = AdaptiveMission(robot, FilteredBody(robot, loc, state["path_m"]), photos, rmap, config, rng, obs)
+    mission.fixes, mission.failed, mission.given_up = state["fixes"], state["failed"], state["given_up"]
+    mission.goals_reached = [np.asarray(g, float) for g in state["goals"]]
+    result = MissionResult(photos, rmap, rounds=state["rounds"])
+    obs.progress(f"resumed after adaptive round {state['rounds']}: {len(result.model_photos)} photos, "
+                 f"{len(rmap.points)} map points")
+    return mission, result
+
+
+def run_mission(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budget: int,
+                config: AdaptiveConfig = AdaptiveConfig(), rng: np.random.Generator | None = None,
+                observer: MissionObserver | None = None,
+                random_config: RandomExplorationConfig | None = None, journal=None) -> MissionResult:
+    """The whole capture mission: random exploration (`n_random` photos), the initial map,
+    then adaptive rounds until the best candidate's gain is below `config.min_gain_rad`, the
+    model holds `photo_budget` photos, or `config.max_rounds`. `start_pose` (3,) is known.
+    `journal` (`robot.mission_journal.SessionJournal`): commit each step to a capture session
+    and resume from what it holds (default: neither)."""
+    from robot.mission_journal import MissionJournal
+
+    rng = rng or np.random.default_rng(0)
+    obs = observer or MissionObserver()
+    journal = journal or MissionJournal()
+    if n_random > photo_budget:
+        raise InputError(f"{n_random} random photos exceed the photo budget of {photo_budget}")
+    state = journal.adaptive_state()
+    if state is None:
+        mission, result = _start_adaptive(robot, start_pose, n_random, random_config or RandomExplorationConfig(),
+                                          config, rng, obs, journal)
+    else:
+        mission, result = _resume_adaptive(robot, state, config, rng, obs, journal)
     result.stop_reason = "max rounds"
-    for r in range(config.max_rounds):
+    for r in range(result.rounds, config.max_rounds):
         left = photo_budget - len(result.model_photos)
         if left <= 0:
             result.stop_reason = "photo budget"
@@ -417,24 +480,30 @@ def run_mission(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budge
         if best < config.min_gain_rad or len(goals) == 0:
             result.stop_reason = f"gain {np.degrees(best):.2f} deg below threshold"
             break
-        grid = mission.nav_grid(free)
-        new = []
-        for g in goals:
-            left = photo_budget - len(result.model_photos)
-            if left <= 0:
-                break
-            if mission.go_to(g, grid):
-                new += mission.capture_at(g, left)
-                mission.goals_reached.append(g)
-            else:
-                mission.given_up += 1
-                obs.progress(f"round {r + 1}: gave up a goal at ({g[0]:.2f}, {g[1]:.2f})")
-        mission.rebuild(new)
+        _adaptive_round(mission, result, goals, mission.nav_grid(free), photo_budget, r, obs)
         result.rounds = r + 1
-    result.robot_map, result.path_m = mission.map, body.path_m
+        journal.round_done(mission, result)
+    result.robot_map, result.path_m = mission.map, mission.body.path_m
     result.goals, result.given_up = mission.goals_reached, mission.given_up
     result.fixes, result.failed_fixes = mission.fixes, mission.failed
     return result
+
+
+def _adaptive_round(mission: AdaptiveMission, result: MissionResult, goals: np.ndarray, grid, photo_budget: int,
+                    r: int, obs: MissionObserver) -> None:
+    """Visit the round's goals (photos at each one reached) and rebuild the map."""
+    new = []
+    for g in goals:
+        left = photo_budget - len(result.model_photos)
+        if left <= 0:
+            break
+        if mission.go_to(g, grid):
+            new += mission.capture_at(g, left)
+            mission.goals_reached.append(g)
+        else:
+            mission.given_up += 1
+            obs.progress(f"round {r + 1}: gave up a goal at ({g[0]:.2f}, {g[1]:.2f})")
+    mission.rebuild(new)
 
 
 def run_random_only(robot: Robot, start_pose: np.ndarray, photo_budget: int,

@@ -32,6 +32,7 @@ from robot.adaptive_exploration import (AdaptiveConfig, MissionObserver, Mission
 from robot.coverage import CoverageConfig, CoverageTracker
 from robot.protocol import robot_camera
 from robot.random_exploration import RandomExplorationConfig
+from robot.mission_journal import SessionJournal
 from robot.session import CaptureSession
 from robot.sim_robot import SimRobot
 
@@ -59,6 +60,18 @@ class RecordingObserver(MissionObserver):
         self.sim = isinstance(robot, SimRobot)
         self.coverage_curve: list[tuple[int, float]] = []
         self.errors: list[tuple[float, float]] = []  # (filter, dead reckoning) position errors (m)
+
+    def restore(self, records: list[dict]) -> None:
+        """Counts and coverage of the photos a resumed session already holds (its records)."""
+        stage = None
+        for r in records:
+            if r["kind"] == "photo":
+                stage = r["stage"]
+                self.n_model += stage != "localise"
+            elif r["kind"] == "evaluation" and stage != "localise" and self.cov is not None:
+                cam = robot_camera(np.asarray(r["true_pose"], float), self.robot.intrinsics, self.robot.image_size,
+                                   self.robot.cam_from_robot)
+                self.coverage_curve.append((r["model_photos"], self.cov.add(cam)))
 
     def _truth(self, photo_index: int):
         """The simulator's true pose when photo `photo_index` was just taken (evaluation only)."""
@@ -169,7 +182,16 @@ def _new_session_dir(base: str) -> Path:
     return p
 
 
+def _demo_meta(args: argparse.Namespace, sim: bool) -> dict:
+    """What a session folder's mission was run with: resuming needs the same."""
+    return {"command": "demo", "world": "office", "seed": args.seed, "robot": "sim" if sim else "nxt",
+            **{k: getattr(args, k) for k in ("photos", "random_photos", "circle_step_deg", "max_rounds",
+                                              "goals_per_round", "min_gain_deg")}}
+
+
 def demo(args: argparse.Namespace) -> int:
+    """The mission into a capture session folder; an existing folder's mission is resumed
+    from its last commit (`robot.mission_journal`), a finished one left as it is."""
     from robot.cli import open_robot
     from robot.virtual_tour import render_tour, tour_poses, tour_route
 
@@ -180,20 +202,28 @@ def demo(args: argparse.Namespace) -> int:
     robot_args = argparse.Namespace(**{**vars(args), "photos": args.photo_dir})
     with open_robot(robot_args, world, start) as robot, contextlib.ExitStack() as stack:
         sim = isinstance(robot, SimRobot)
-        if (folder / "session.json").exists():
-            raise InputError(f"{folder}: already holds a capture session; the mission does not resume one, "
-                             f"give a new --session folder")
-        session = stack.enter_context(CaptureSession.create(
-            folder, robot.intrinsics, robot.image_size, robot.cam_from_robot,
-            meta={"command": "demo", "world": "office", "seed": args.seed, "robot": "sim" if sim else "nxt"}))
+        resuming = (folder / "session.json").exists()
+        session = stack.enter_context(CaptureSession.open_or_create(
+            folder, robot.intrinsics, robot.image_size, robot.cam_from_robot, meta=_demo_meta(args, sim),
+            rollback=True))
+        if (session.last_commit or {}).get("state", {}).get("stage") == "finished":
+            print(f"{folder}: the mission is already finished ({len(session.photos)} photos)")
+            return 0
+        if resuming:
+            print(f"resuming the mission in {folder}: {len(session.photos)} photos and {len(session.records)} "
+                  f"records kept (repaired: {session.recovery or 'nothing'})")
         ibr_viz.rerun_setup(args, "ibrnav_demo", "ibrnav_demo.rrd")
         robot_viz.log_robot_body(getattr(getattr(robot, "config", None), "radius_m", 0.15))
         coverage = CoverageTracker(world.mesh, CoverageConfig()) if sim else None
         obs = _observer(robot, session, progress, True, coverage)
-        session.append("start", start_pose=start, seed=args.seed)
+        obs.restore(session.records)
+        if not any(r["kind"] == "start" for r in session.records):
+            session.append("start", start_pose=start, seed=args.seed)
         result = run_mission(robot, start, min(args.random_photos, args.photos), args.photos,
-                             mission_config(args), np.random.default_rng(args.seed), obs, random_config(args))
-        session.append("finished", stop_reason=result.stop_reason, path_m=result.path_m)
+                             mission_config(args), np.random.default_rng(args.seed), obs, random_config(args),
+                             SessionJournal(session, robot, replayable=sim))
+        session.commit(sum(r["kind"] == "commit" for r in session.records),
+                       {"stage": "finished", "stop_reason": result.stop_reason, "path_m": result.path_m})
         progress(f"mission finished ({result.stop_reason}); final model: {len(result.robot_map.points)} points, "
                  f"{len(result.robot_map.mesh.faces)} faces")
         robot_viz.log_robot_map(result.robot_map.points, result.robot_map.colors, result.robot_map.mesh)
@@ -281,7 +311,7 @@ def register(subparsers) -> None:
     p.add_argument("--height", type=int, default=240, help="camera image height (px)")
     p.add_argument("--photo-dir", default=None, help="with nxt: the folder the camera's photos arrive in")
     p.add_argument("--camera", default=None, help="with nxt: an OpenCV capture device (index, file or pattern)")
-    p.add_argument("--session", default=None, help="capture-session folder to write (default: a new "
+    p.add_argument("--session", default=None, help="capture-session folder to write, or to resume the mission of (default: a new "
                    "ibrnav_demo_capture[_N] folder)")
     p.add_argument("--tour-frames", type=int, default=12, help="frames of the virtual tour (0: none)")
     p.add_argument("--tour-width", type=int, default=160, help="width of the tour frames (px)")
