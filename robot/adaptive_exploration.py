@@ -39,8 +39,14 @@ from ibr.errors import InputError
 from ibr.triangulation import TriangulationConfig, sift_features
 from localization.feature_localizer import FeatureLocalizerConfig, FeatureMap
 from localization.motion_models import wrap_angle
+from robot.initial_map import (
+    MapConfig,
+    RobotMap,
+    extend_map,
+    initial_map,
+    stereo_tracks,
+)
 from robot.mission_localizer import FilteredBody, MissionFilterConfig, MissionLocalizer
-from robot.initial_map import MapConfig, RobotMap, extend_map, initial_map, stereo_tracks
 from robot.protocol import Photo, Robot, robot_camera
 from robot.random_exploration import Body, RandomExplorationConfig, random_exploration
 

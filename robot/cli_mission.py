@@ -1,8 +1,11 @@
 """`ibrnav demo`: the autonomous scene-capture mission of Foster, Wang & Grupen in
 synthetic:office: random exploration, the initial map (SfM), adaptive exploration with the
 rendering-quality heuristic until the gain runs out, the final model and a virtual tour
-(ULR fly-through). Every photo, pose estimate and map event goes to a capture session folder
-as it happens, and everything to rerun (`--save`, default ibrnav_demo.rrd).
+(ULR fly-through). Path following runs on an SE(2) particle filter (`robot.mission_localizer`).
+Every photo, pose estimate and map event goes to a capture session folder as it happens,
+with a commit per step, so `ibrnav demo --session DIR` on the folder of a killed mission
+resumes it (`robot.mission_journal`); everything goes to rerun (`--save`, default
+ibrnav_demo.rrd), particles at world/particles.
 
 `ibrnav explore SCENE --strategy adaptive|random --photos N --seed S --json OUT`: the same
 mission (or random exploration only) with a photo budget, scored by surface coverage of the
@@ -27,12 +30,18 @@ from ibr.errors import InputError
 from ibr.synthetic import loop_route, make_world
 from localization import viz as loc_viz
 from robot import viz as robot_viz
-from robot.adaptive_exploration import (AdaptiveConfig, MissionObserver, MissionPhoto, MissionResult,
-                                        run_mission, run_random_only)
+from robot.adaptive_exploration import (
+    AdaptiveConfig,
+    MissionObserver,
+    MissionPhoto,
+    MissionResult,
+    run_mission,
+    run_random_only,
+)
 from robot.coverage import CoverageConfig, CoverageTracker
+from robot.mission_journal import SessionJournal
 from robot.protocol import robot_camera
 from robot.random_exploration import RandomExplorationConfig
-from robot.mission_journal import SessionJournal
 from robot.session import CaptureSession
 from robot.sim_robot import SimRobot
 
@@ -92,6 +101,7 @@ class RecordingObserver(MissionObserver):
                                 float(np.hypot(*(mp.dead_reckoning[:2] - truth[:2])))))
         if truth is not None and self.session is not None:  # simulator only: ground truth, for evaluation
             self.session.append("evaluation", time_s=mp.photo.time_s, true_pose=truth, estimate=mp.estimate,
+                                dead_reckoning=mp.dead_reckoning,
                                 model_photos=self.n_model,
                                 coverage=self.coverage_curve[-1][1] if self.coverage_curve else None)
         if not self.log:
@@ -239,6 +249,10 @@ def demo(args: argparse.Namespace) -> int:
                 robot_viz.log_tour_frame(cam, image)
         ibr_viz.rerun_teardown(args)
     cov = f", surface coverage {obs.coverage_curve[-1][1]:.3f}" if obs.coverage_curve else ""
+    err = _error_summary(obs.errors)
+    if err:
+        cov += (f", mean position error {err['filter_mean']:.2f} m (particle filter) vs "
+                f"{err['dead_reckoning_mean']:.2f} m (dead reckoning)")
     print(f"captured {len(result.model_photos)} photos ({len(result.photos) - len(result.model_photos)} more to "
           f"localise) in {result.rounds} adaptive rounds, {len(result.goals)} goals reached, {result.given_up} "
           f"given up, drove {result.path_m:.1f} m{cov}; capture folder {folder}; "

@@ -156,7 +156,7 @@ class SessionJournal(MissionJournal):
             with np.load(path) as d:
                 cams = _cameras_from(d)
                 mesh = trimesh.Trimesh(d["vertices"], d["faces"], process=False,
-                                       vertex_colors=d["vertex_colors"] if "vertex_colors" in d else None)
+                                       vertex_colors=d.get("vertex_colors"))
                 rmap = RobotMap({int(i): cams[int(i)] for i in d["map_cameras"]}, d["points"], d["colors"],
                                 d["normals"], mesh, int(d["registered"]))
         except (OSError, ValueError, KeyError) as e:

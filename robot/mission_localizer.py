@@ -121,7 +121,7 @@ class MissionLocalizer:
         """The Mixture-MCL measurement step for a PnP robot pose `fix` (3,) (module docstring)."""
         pf, rng = self.pf, self.pf.rng
         n = len(pf.particles)
-        m = max(1, int(round(self.config.pnp_fraction * n)))
+        m = max(1, round(self.config.pnp_fraction * n))
         sig = self.pnp_sigmas(n_inliers)
         keep = np.sort(rng.choice(n, n - m, replace=False))
         prior, prior_w = pf.particles[keep], pf.log_w[keep]

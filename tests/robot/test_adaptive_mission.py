@@ -9,8 +9,14 @@ import shapely
 
 from explore.candidates import sample_candidates
 from ibr.synthetic import make_world
-from robot.adaptive_exploration import (AdaptiveConfig, AdaptiveMission, MissionObserver, MissionPhoto, pick_goals,
-                                        start_filter)
+from robot.adaptive_exploration import (
+    AdaptiveConfig,
+    AdaptiveMission,
+    MissionObserver,
+    MissionPhoto,
+    pick_goals,
+    start_filter,
+)
 from robot.coverage import surface_samples
 from robot.initial_map import RobotMap
 from robot.protocol import MotionResult, robot_camera
@@ -79,7 +85,7 @@ def test_goals_lie_in_the_free_space_and_score_best(office):
 
 def test_goes_to_a_goal_on_the_localisers_estimate(office):
     m, robot, obs = office
-    goals, _, free = m.choose_goals()
+    _, _, free = m.choose_goals()
     grid = m.nav_grid(free)
     # a goal 1-2.5 m away, where the map's photos saw enough to localise against
     cand = sample_candidates(free, 200, np.random.default_rng(5), 0.4)

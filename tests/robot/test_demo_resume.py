@@ -30,7 +30,8 @@ def demo(session: Path, kill_at: str | None = None) -> subprocess.CompletedProce
     if kill_at:
         env[KILL_ENV] = kill_at
     return subprocess.run([str(BIN / "ibrnav"), *DEMO, "--session", str(session), "--save",
-                           str(session.parent / "demo.rrd")], capture_output=True, text=True, timeout=300, env=env)
+                           str(session.parent / "demo.rrd")], capture_output=True, text=True, timeout=300, env=env,
+                          check=False)
 
 
 def test_demo_killed_twice_resumes_to_the_planned_capture(tmp_path):
