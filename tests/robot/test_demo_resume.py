@@ -114,3 +114,30 @@ def test_random_stage_resumes_to_the_records_and_photos_of_an_uninterrupted_run(
         assert p.read_bytes() == (tmp_path / "b" / "photos" / p.name).read_bytes()
     assert len(list((tmp_path / "b" / "photos").iterdir())) == 30
     assert np.array_equal(a.true_pose, b.true_pose)
+
+
+def test_a_real_robot_takes_the_remaining_random_photos_from_where_it_is(tmp_path, office):
+    """No replay without a simulator: the stage goes on from the last logged estimate."""
+    start = np.array([-1.5, -2.5, 0.0])
+    cfg = RandomExplorationConfig(circle_step_rad=np.radians(30))
+    robot = SimRobot(office, SimRobotConfig(image_size=(32, 24)), np.random.default_rng(4), start_pose=tuple(start))
+    folder = tmp_path / "real"
+    for stop_after in (17, 0):
+        with CaptureSession.open_or_create(folder, robot.intrinsics, robot.image_size, robot.cam_from_robot,
+                                           rollback=True) as s:
+
+            class Write(StopAfter):
+                def photo(self, mp):
+                    s.add_photo(mp.photo, pose=mp.estimate, stage=mp.stage)
+
+            try:
+                photos, body = _random_stage(robot, start, 30, cfg, np.random.default_rng(9), Write(stop_after),
+                                             SessionJournal(s, robot, replayable=False))
+            except Stop:
+                continue
+    records = CaptureSession.open(folder).records
+    assert len(photos) == 30 and [r["index"] for r in records if r["kind"] == "photo"] == list(range(30))
+    assert [r["kind"] for r in records] == ["photo", "commit"] * 30
+    # photo 16 was rolled back and taken again after the robot had already photographed it once
+    assert [r["robot_index"] for r in records if r["kind"] == "photo"][16] == 17
+    assert body.path_m >= records[31]["state"]["path_m"] > 0  # the odometer goes on from the commit
