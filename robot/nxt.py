@@ -354,7 +354,7 @@ class NXTRobot:
             except BaseException:
                 self._safe_stop()
                 raise
-        after = self._read_odometry()
+        after = self._odom.update(*self._settled_counts())
         delta = after - before
         delta[2] = (delta[2] + np.pi) % (2 * np.pi) - np.pi
         return MotionResult(delta, hit[0], hit[1], stalled)
@@ -410,6 +410,19 @@ class NXTRobot:
 
     def _counts(self) -> tuple[float, float]:
         return self._wheel_states()[2]
+
+    def _settled_counts(self, tries: int = 5) -> tuple[float, float]:
+        """The wheels' counts once braked: read until two reads agree. A reply that came
+        late to a timed-out poll (a slow link) can still be in flight and be taken for the
+        answer to the next read; it holds older counts of the moving wheels, so the first
+        read that repeats the one before it is the settled one."""
+        last = self._counts()
+        for _ in range(tries):
+            now = self._counts()
+            if now == last:
+                break
+            last = now
+        return last
 
     def _read_odometry(self) -> np.ndarray:
         return self._odom.update(*self._counts())
