@@ -136,20 +136,51 @@ def triangulate_pair(a: Camera, b: Camera, xa: np.ndarray, xb: np.ndarray,
     return P[idx], idx
 
 
+def triangulate_matches(a: Camera, b: Camera, fa: Features, fb: Features,
+                        cfg: TriangulationConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Match the features of two posed views, keep the epipolar-consistent matches and
+    triangulate them. Returns world points (M, 3) and each point's feature indices (M, 2)
+    into fa and fb."""
+    m = match_features(fa, fb, cfg.ratio)
+    xa, xb = fa.uv[m[:, 0]], fb.uv[m[:, 1]]
+    good = np.flatnonzero(sampson_distance(fundamental_matrix(a, b), xa, xb) < cfg.max_epipolar_px)
+    P, idx = triangulate_pair(a, b, xa[good], xb[good], cfg)
+    return P, m[good[idx]]
+
+
 def triangulate_views(cameras: list[Camera], features: list[Features],
                       cfg: TriangulationConfig = TriangulationConfig()) -> TriangulatedPoints:
     """Match every view with its neighbours, keep epipolar-consistent matches and triangulate
     them with the known poses. Returns the union of all pairs' points."""
     pts, cols, pairs = [], [], []
     for i, j in neighbour_pairs(cameras, cfg.neighbours):
-        m = match_features(features[i], features[j], cfg.ratio)
-        xa, xb = features[i].uv[m[:, 0]], features[j].uv[m[:, 1]]
-        good = sampson_distance(fundamental_matrix(cameras[i], cameras[j]), xa, xb) < cfg.max_epipolar_px
-        P, idx = triangulate_pair(cameras[i], cameras[j], xa[good], xb[good], cfg)
+        P, mi = triangulate_matches(cameras[i], cameras[j], features[i], features[j], cfg)
         pts.append(P)
-        cols.append(features[i].colors[m[good, 0][idx]])
+        cols.append(features[i].colors[mi[:, 0]])
         pairs.append(np.tile([i, j], (len(P), 1)))
     if not pts:
         return TriangulatedPoints(np.zeros((0, 3)), np.zeros((0, 3), np.uint8), np.zeros((0, 2), int))
     return TriangulatedPoints(np.concatenate(pts), np.concatenate(cols).astype(np.uint8),
                               np.concatenate(pairs))
+
+
+def pair_tracks(cameras: list[Camera], feats: list[Features], pairs: np.ndarray, cfg: TriangulationConfig):
+    """Triangulate the epipolar-consistent SIFT matches of the given view `pairs` (P, 2)
+    with the poses fixed. Returns points (N, 3), colours (N, 3) uint8, the two descriptors of
+    each point's features (2N, 128) with their owners (2N,), and the first view of each point
+    (a map a feature localiser can match against)."""
+    pts, cols, descs, owners, first = [], [], [], [], []
+    n = 0
+    for i, j in pairs:
+        P, mi = triangulate_matches(cameras[i], cameras[j], feats[i], feats[j], cfg)
+        pts.append(P)
+        cols.append(feats[i].colors[mi[:, 0]])
+        descs += [feats[i].descriptors[mi[:, 0]], feats[j].descriptors[mi[:, 1]]]
+        owners += [np.arange(n, n + len(P))] * 2
+        first.append(np.full(len(P), i))
+        n += len(P)
+    if n == 0:
+        return (np.zeros((0, 3)), np.zeros((0, 3), np.uint8), np.zeros((0, 128), np.float32),
+                np.zeros(0, int), np.zeros(0, int))
+    return (np.concatenate(pts), np.concatenate(cols).astype(np.uint8), np.concatenate(descs).astype(np.float32),
+            np.concatenate(owners), np.concatenate(first))

@@ -28,8 +28,8 @@ from scipy.spatial.transform import Rotation
 
 from ibr.camera import Camera, rigid
 from ibr.scene import Scene
-from ibr.triangulation import (Features, TriangulationConfig, fundamental_matrix, match_features,
-                               neighbour_pairs, sampson_distance, sift_features, triangulate_pair)
+from ibr.triangulation import (Features, TriangulationConfig, neighbour_pairs, pair_tracks,
+                               sift_features)
 
 
 @dataclass(frozen=True)
@@ -84,22 +84,8 @@ def triangulated_tracks(cameras: list[Camera], feats: list[Features], cfg: Trian
 
     Returns points (P, 3) world metres, descriptors (2P, 128) float32 and owner (2P,) the
     point index of each descriptor (both features of every match are kept)."""
-    pts, descs, owners = [], [], []
-    n = 0
-    for i, j in neighbour_pairs(cameras, cfg.neighbours):
-        m = match_features(feats[i], feats[j], cfg.ratio)
-        xa, xb = feats[i].uv[m[:, 0]], feats[j].uv[m[:, 1]]
-        good = np.flatnonzero(sampson_distance(fundamental_matrix(cameras[i], cameras[j]), xa, xb)
-                              < cfg.max_epipolar_px)
-        P, idx = triangulate_pair(cameras[i], cameras[j], xa[good], xb[good], cfg)
-        mi = m[good[idx]]
-        pts.append(P)
-        descs += [feats[i].descriptors[mi[:, 0]], feats[j].descriptors[mi[:, 1]]]
-        owners += [np.arange(n, n + len(P))] * 2
-        n += len(P)
-    if n == 0:
-        return np.zeros((0, 3)), np.zeros((0, 128), np.float32), np.zeros(0, int)
-    return np.concatenate(pts), np.concatenate(descs).astype(np.float32), np.concatenate(owners)
+    points, _, descriptors, owner, _ = pair_tracks(cameras, feats, neighbour_pairs(cameras, cfg.neighbours), cfg)
+    return points, descriptors, owner
 
 
 class FeatureMap:

@@ -30,8 +30,7 @@ from ibr.camera import Camera, rigid
 from ibr.errors import InputError
 from ibr.normals import estimate_normals, remove_outliers
 from ibr.poisson import PoissonConfig, poisson_mesh
-from ibr.triangulation import (TriangulationConfig, fundamental_matrix, match_features, sampson_distance,
-                               triangulate_pair)
+from ibr.triangulation import TriangulationConfig, pair_tracks
 
 
 class MapError(InputError):
@@ -100,32 +99,6 @@ def stereo_pairs(cameras: list[Camera], k: int, min_baseline_m: float = 0.25,
     pairs = {(min(i, j), max(i, j)) for i in range(len(cameras))
              for j in np.argsort(score[i])[:k] if np.isfinite(score[i, j])}
     return np.array(sorted(pairs), dtype=int).reshape(-1, 2)
-
-
-def pair_tracks(cameras: list[Camera], feats: list, pairs: np.ndarray, cfg: TriangulationConfig):
-    """Triangulate the epipolar-consistent SIFT matches of the given view `pairs` (P, 2)
-    with the poses fixed. Returns points (N, 3), colours (N, 3) uint8, the two descriptors of
-    each point's features (2N, 128) with their owners (2N,), and the first view of each point."""
-    pts, cols, descs, owners, first = [], [], [], [], []
-    n = 0
-    for i, j in pairs:
-        m = match_features(feats[i], feats[j], cfg.ratio)
-        xa, xb = feats[i].uv[m[:, 0]], feats[j].uv[m[:, 1]]
-        good = np.flatnonzero(sampson_distance(fundamental_matrix(cameras[i], cameras[j]), xa, xb)
-                              < cfg.max_epipolar_px)
-        P, idx = triangulate_pair(cameras[i], cameras[j], xa[good], xb[good], cfg)
-        mi = m[good[idx]]
-        pts.append(P)
-        cols.append(feats[i].colors[mi[:, 0]])
-        descs += [feats[i].descriptors[mi[:, 0]], feats[j].descriptors[mi[:, 1]]]
-        owners += [np.arange(n, n + len(P))] * 2
-        first.append(np.full(len(P), i))
-        n += len(P)
-    if n == 0:
-        return (np.zeros((0, 3)), np.zeros((0, 3), np.uint8), np.zeros((0, 128), np.float32),
-                np.zeros(0, int), np.zeros(0, int))
-    return (np.concatenate(pts), np.concatenate(cols).astype(np.uint8), np.concatenate(descs).astype(np.float32),
-            np.concatenate(owners), np.concatenate(first))
 
 
 # --- SfM -------------------------------------------------------------------------------
