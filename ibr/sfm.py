@@ -11,6 +11,7 @@ The reconstruction's frame and scale are arbitrary (COLMAP's), not metres.
 
 from __future__ import annotations
 
+import contextlib
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +34,20 @@ class SfmConfig:
     """Fewest photos the largest reconstruction must register."""
 
 
+@contextlib.contextmanager
+def colmap_errors_only():
+    """Silence COLMAP's per-image INFO and WARNING log lines (hundreds per run, on stderr,
+    where ibrnav prints its own progress) for the duration; errors still show."""
+    import pycolmap
+
+    level = pycolmap.logging.minloglevel
+    pycolmap.logging.minloglevel = 2  # glog's ERROR
+    try:
+        yield
+    finally:
+        pycolmap.logging.minloglevel = level
+
+
 def reconstruct(folder: str | Path, cfg: SfmConfig = SfmConfig(), overwrite: bool = False) -> Path:
     """Reconstruct `folder/images` and write the largest model to `folder/sparse/0`; reuse it
     when present unless `overwrite`. Returns the model folder."""
@@ -50,9 +65,10 @@ def reconstruct(folder: str | Path, cfg: SfmConfig = SfmConfig(), overwrite: boo
     work.mkdir(parents=True)
     db = work / "database.db"
     mode = pycolmap.CameraMode.SINGLE if cfg.single_camera else pycolmap.CameraMode.AUTO
-    pycolmap.extract_features(db, images, camera_mode=mode, device=pycolmap.Device.cpu)
-    pycolmap.match_exhaustive(db, device=pycolmap.Device.cpu)
-    maps = pycolmap.incremental_mapping(db, images, work / "sparse")
+    with colmap_errors_only():
+        pycolmap.extract_features(db, images, camera_mode=mode, device=pycolmap.Device.cpu)
+        pycolmap.match_exhaustive(db, device=pycolmap.Device.cpu)
+        maps = pycolmap.incremental_mapping(db, images, work / "sparse")
     if not maps:
         raise SfmError(f"{images}: COLMAP could not register the photos (too little overlap?)")
     best = max(maps.values(), key=lambda r: r.num_reg_images())

@@ -30,6 +30,7 @@ from ibr.camera import Camera, rigid
 from ibr.errors import InputError
 from ibr.normals import estimate_normals, remove_outliers
 from ibr.poisson import PoissonConfig, poisson_mesh
+from ibr.sfm import colmap_errors_only
 from ibr.triangulation import TriangulationConfig, pair_tracks
 
 
@@ -130,14 +131,16 @@ def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, confi
     extract = pycolmap.FeatureExtractionOptions()
     extract.num_threads, extract.sift.max_num_features = config.threads, config.max_features
     extract.sift.first_octave = config.sift_first_octave
-    pycolmap.extract_features(db, img_dir, names, camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader,
-                              extraction_options=extract, device=pycolmap.Device.cpu)
+    with colmap_errors_only():
+        pycolmap.extract_features(db, img_dir, names, camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader,
+                                  extraction_options=extract, device=pycolmap.Device.cpu)
     matching = pycolmap.FeatureMatchingOptions()
     matching.num_threads = config.threads
     pairs = heading_pairs(np.asarray(headings), config.match_heading_rad)
     (work / "pairs.txt").write_text("".join(f"{names[i]} {names[j]}\n" for i, j in pairs))
-    pycolmap.match_image_pairs(db, matching_options=matching, device=pycolmap.Device.cpu,
-                               pairing_options=pycolmap.ImportedPairingOptions(match_list_path=work / "pairs.txt"))
+    with colmap_errors_only():
+        pycolmap.match_image_pairs(db, matching_options=matching, device=pycolmap.Device.cpu,
+                                   pairing_options=pycolmap.ImportedPairingOptions(match_list_path=work / "pairs.txt"))
     opts = pycolmap.IncrementalPipelineOptions()
     opts.num_threads, opts.random_seed = config.threads, config.seed
     opts.mapper.num_threads, opts.mapper.random_seed = config.threads, config.seed
@@ -145,7 +148,8 @@ def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, confi
     opts.multiple_models = False
     opts.ba_global_frames_ratio = opts.ba_global_points_ratio = 1.4  # fewer global BAs: ~100 photos
     opts.ba_global_max_num_iterations, opts.ba_local_max_num_iterations = 30, 15
-    maps = pycolmap.incremental_mapping(db, img_dir, work / "sparse", opts)
+    with colmap_errors_only():
+        maps = pycolmap.incremental_mapping(db, img_dir, work / "sparse", opts)
     if not maps:
         raise MapError(f"SfM registered none of the {len(images)} photos (too little texture or overlap?)")
     rec = max(maps.values(), key=lambda r: r.num_reg_images())
