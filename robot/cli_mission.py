@@ -254,7 +254,7 @@ def demo(args: argparse.Namespace) -> int:
         cov += (f", mean position error {err['filter_mean']:.2f} m (particle filter) vs "
                 f"{err['dead_reckoning_mean']:.2f} m (dead reckoning)")
     print(f"captured {len(result.model_photos)} photos ({len(result.photos) - len(result.model_photos)} more to "
-          f"localise) in {result.rounds} adaptive round{"s" if result.rounds != 1 else ""}, {len(result.goals)} goals reached, {result.given_up} "
+          f"localise) in {result.rounds} adaptive round{'s' if result.rounds != 1 else ''}, {len(result.goals)} goals reached, {result.given_up} "
           f"given up, drove {result.path_m:.1f} m{cov}; capture folder {folder}; "
           f"{time.perf_counter() - progress.t0:.0f} s")
     return 0
