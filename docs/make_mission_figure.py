@@ -30,9 +30,9 @@ ax = axes[0]
 for poly in getattr(office.free_space, "geoms", [office.free_space]):
     for ring in (poly.exterior, *poly.interiors):
         ax.plot(*np.asarray(ring.coords).T, "k-", lw=1)
-for stage, colour in (("random", "tab:orange"), ("adaptive", "tab:blue")):
+for stage, colour, size in (("localise", "0.7", 2), ("random", "tab:orange", 5), ("goal", "tab:blue", 5)):
     xy = np.array([p["pose"][:2] for p in photos if p.get("stage") == stage] or np.zeros((0, 2)))
-    ax.plot(*xy.T, ".", color=colour, ms=5, label=f"{stage} photos ({len(xy)})")
+    ax.plot(*xy.T, ".", color=colour, ms=size, label=f"{stage} photos ({len(xy)})")
 ax.plot(*goals.T, "r*", ms=9, label="goals")
 ax.set_aspect("equal")
 ax.legend(loc="upper right", fontsize=7)
@@ -60,9 +60,9 @@ ax.grid(alpha=0.3)
 
 ax = axes[3]
 first = next(p for p in photos if p.get("stage") == "random")
-last = [p for p in photos if p.get("stage") == "adaptive"][-1:] or [photos[-1]]
+last = [p for p in photos if p.get("stage") == "goal"][-1:] or [photos[-1]]
 ax.imshow(np.hstack([np.asarray(Image.open(folder / p["file"]).convert("RGB")) for p in (first, last[0])]))
-ax.set_title("a random-stage photo | an adaptive-stage photo")
+ax.set_title("a random-stage photo | a goal photo")
 ax.axis("off")
 plt.tight_layout()
 plt.savefig(Path(__file__).with_name("mission.png"), dpi=70)
