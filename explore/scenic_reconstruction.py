@@ -24,6 +24,7 @@ import cv2
 import numpy as np
 
 from ibr.camera import Camera
+from ibr.triangulation import fundamental_matrix
 
 
 @dataclass(frozen=True)
@@ -62,14 +63,6 @@ def detect(image: np.ndarray, config: StereoConfig) -> tuple[np.ndarray, np.ndar
     kps, desc = sift.detectAndCompute(cv2.cvtColor(image, cv2.COLOR_RGB2GRAY), None)
     uv = np.array([k.pt for k in kps], dtype=np.float64).reshape(-1, 2)
     return uv, (desc if desc is not None else np.zeros((0, 128), np.float32))
-
-
-def fundamental_from_cameras(left: Camera, right: Camera) -> np.ndarray:
-    """F (3, 3) with x_Rᵀ F x_L = 0 for pixel coordinates of the two known cameras."""
-    right_from_left = right.cam_from_world @ left.world_from_cam
-    R, t = right_from_left[:3, :3], right_from_left[:3, 3]
-    tx = np.array([[0, -t[2], t[1]], [t[2], 0, -t[0]], [-t[1], t[0], 0]])
-    return np.linalg.inv(right.K).T @ tx @ R @ np.linalg.inv(left.K)
 
 
 def epipolar_distance(F: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -123,7 +116,7 @@ def dense_match(left_image: np.ndarray, right_image: np.ndarray, left: Camera, r
     hb = np.c_[b, np.ones(len(b))] @ H.T
     b = hb[:, :2] / hb[:, 2:]                               # back to right-image pixels
     keep &= (hb[:, 2] > 0) & (b[:, 0] >= 0) & (b[:, 0] <= w - 1) & (b[:, 1] >= 0) & (b[:, 1] <= h - 1)
-    keep &= epipolar_distance(fundamental_from_cameras(left, right), a, b) < config.max_epipolar_px
+    keep &= epipolar_distance(fundamental_matrix(left, right), a, b) < config.max_epipolar_px
     return a[keep], b[keep]
 
 
@@ -150,7 +143,7 @@ def sift_match(left_image: np.ndarray, right_image: np.ndarray, left: Camera, ri
                       if len(m) == 2 and m[0].distance < config.ratio * m[1].distance],
                      dtype=np.int64).reshape(-1, 2)
     a, b = uv_l[pairs[:, 0]], uv_r[pairs[:, 1]]
-    keep = epipolar_distance(fundamental_from_cameras(left, right), a, b) < config.max_epipolar_px
+    keep = epipolar_distance(fundamental_matrix(left, right), a, b) < config.max_epipolar_px
     return a[keep], b[keep]
 
 
