@@ -2,18 +2,16 @@
 
 From the map of the photos so far (`robot.initial_map`), each round:
 1. slices the mesh at the camera height for the free-space boundary and samples random
-   candidate poses inside it (`explore.candidates`), keeping those some photo saw through
-   (`ViewQuality.seen_free`: not behind a wall of the map nor inside furniture);
+   candidate poses inside it (`explore.candidates`);
 2. scores all candidates in one batched pass of the rendering-quality heuristic
    (`explore.view_quality.ViewQuality`: mean smallest angle between a pixel's desired ray
    and the rays to the source photos that see its point; higher = more to gain);
 3. picks the best goals (greedy, spread apart) and stops when the best score is below
    `AdaptiveConfig.min_gain_rad`;
-4. drives to each goal: a KDE navigation grid from the above-ground map points (cells no
-   photo saw through are dear), A* and path simplification (`explore.nav_grid`,
-   `explore.path_simplify`); the robot follows the path by target-node switching within
-   `switch_m` on the estimate of an SE(2) particle filter (`robot.mission_localizer`, its
-   box prior grown to each round's grid): odometry and compass between nodes, *vision* at the nodes
+4. drives to each goal: a KDE navigation grid from the above-ground map points, A* and path
+   simplification (`explore.nav_grid`, `explore.path_simplify`); the robot follows the path by
+   target-node switching within `switch_m` on the estimate of an SE(2) particle filter
+   (`robot.mission_localizer`): odometry and compass between nodes, *vision* at the nodes
    (SIFT + RANSAC PnP against the map, `localization.feature_localizer`, as a mixture
    proposal), and an extra photo when the filter's spread grows too large: the plan
    consumes the filter's estimate, never a simulator's truth. On an obstacle it
@@ -89,9 +87,6 @@ class AdaptiveConfig:
     """Legs after which a goal is given up (a planner or localisation fault never loops forever)."""
     max_path_cost: float = 0.35
     """Grid cells with a (normalised) KDE cost above this are blocked for A*."""
-    grid_seen_margin_m: float = 0.15
-    """A grid cell no photo saw through by this margin (m, `ViewQuality.seen_free`) costs
-    at least `max_path_cost`: passable, but paths keep to the space the photos saw empty."""
     max_fix_jump_m: float = 1.0
     """A PnP fix farther than this from the dead-reckoning estimate is rejected (m)."""
     max_fix_height_err_m: float = 0.15
@@ -185,7 +180,6 @@ class AdaptiveMission:
         self.template = Camera(robot.intrinsics, w, h, np.eye(4))
         self.cam_height = float(np.linalg.inv(robot.cam_from_robot)[2, 3])
         self._features: dict[int, object] = {}
-        self._seen_free = None  # the last scorer's `ViewQuality.seen_free` (its sources' depth maps)
         self.fixes = self.failed = self.given_up = 0
         self.goals_reached: list[np.ndarray] = []
         self.tracks = stereo_tracks(self._model_cameras(), self._feats, config.localizer.triangulation)
@@ -268,11 +262,7 @@ class AdaptiveMission:
         cand = sample_candidates(free, c.n_candidates, self.rng, c.clearance_m)
         vq = ViewQuality(self.map.mesh, cams, config=c.view_quality)
         try:
-            clip, eyes = vq.pose_views(cand, self.template, self.robot.cam_from_robot)
-            seen = vq.seen_free(eyes, c.clearance_m)  # not behind the map's walls, nor in furniture
-            self._seen_free = vq.seen_free  # numpy only: still usable after release()
-            cand = cand[seen]
-            scores = vq.score_views(clip[seen], eyes[seen])
+            scores = vq.score_poses(cand, self.template, self.robot.cam_from_robot)
         finally:
             vq.release()
         pick = pick_goals(cand, scores, c.goals_per_round, c.goal_separation_m)
@@ -285,15 +275,6 @@ class AdaptiveMission:
         lo = np.minimum(cams.min(0), np.asarray(free.bounds[:2])) - 0.5
         hi = np.maximum(cams.max(0), np.asarray(free.bounds[2:])) + 0.5
         grid = nav_grid_from_points(self.map.points, (*lo, *hi), self.config.grid)
-        if isinstance(self.body, FilteredBody):  # the filter's map prior covers where it may drive
-            self.body.est.grow_prior(np.array([lo, hi]))
-        seen = self._seen_free
-        if seen is not None:  # cells no photo saw through (a table with few points): dearest passable
-            H, W = grid.shape
-            xy = grid.cell_to_world(np.indices((H, W)).reshape(2, -1).T)
-            free_cells = seen(np.c_[xy, np.full(len(xy), self.cam_height)], self.config.grid_seen_margin_m)
-            grid = replace(grid, cost=np.where(free_cells.reshape(H, W), grid.cost,
-                                               np.maximum(grid.cost, self.config.max_path_cost)))
         self.obs.grid(grid)
         return grid
 

@@ -127,20 +127,3 @@ def test_gives_a_goal_up_after_k_obstacles(office, monkeypatch):
     far = goals[np.argmax(np.hypot(*(goals[:, :2] - m.body.est.pose[:2]).T))]
     assert not m.go_to(far, m.nav_grid(free))
     assert len(drives) == 6  # k = 5 obstacles survived, the 6th gives up
-
-
-def test_goals_leave_the_photographed_corner_of_an_open_map(office):
-    """The demo's first map: every photo in the south of the room, and the mesh open in the
-    north (a wall SfM did not reconstruct). Goals are still chosen across the room where a
-    photo saw empty space (not only around the cameras), never behind a wall or in furniture."""
-    m, robot, _ = office
-    mesh = robot.world.mesh
-    north = np.all(np.isclose(mesh.vertices[mesh.faces][:, :, 1], 4.0), axis=1)  # the y = 4 wall
-    open_mesh = mesh.copy()
-    open_mesh.update_faces(~north)
-    cams_y = max(p.camera.center[1] for p in m.photos if p.camera is not None)
-    m2 = AdaptiveMission(robot, m.body, list(m.photos), replace(m.map, mesh=open_mesh), m.config,
-                         np.random.default_rng(3), MissionObserver())
-    goals, _, free = m2.choose_goals()
-    assert free.bounds[3] > 3.0 and goals[:, 1].max() > cams_y + 1.5
-    assert shapely.contains_xy(robot.world.free_space, goals[:, 0], goals[:, 1]).all()
