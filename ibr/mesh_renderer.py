@@ -95,6 +95,18 @@ class MeshRenderer:
             self.prog, [(self.vbo, "3f4 3f4 2f4 4f4 1f4", *self.ATTRS)], self.ibo)
         self._fbos: dict[tuple[int, int], moderngl.Framebuffer] = {}
 
+    def release(self) -> None:
+        """Free this renderer's GL objects (buffers, texture, programs, framebuffers)."""
+        if self._fbos:
+            self.ctx.detect_framebuffer(0).use()  # never leave a deleted framebuffer bound
+        for fbo in self._fbos.values():
+            for attachment in (*fbo.color_attachments, fbo.depth_attachment):
+                attachment.release()
+            fbo.release()
+        self._fbos.clear()
+        for obj in (self.vao, self.vbo, self.ibo, self.texture, self.prog, self.prog_batched):
+            obj.release()
+
     def _upload_texture(self, image: np.ndarray | None) -> moderngl.Texture:
         if image is None:
             image = np.full((1, 1, 3), 255, np.uint8)

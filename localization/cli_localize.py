@@ -17,7 +17,7 @@ from ibr.camera import Camera
 from ibr.errors import InputError
 from ibr.scene import load_scene, read_image
 from localization import viz
-from localization.eval_loc import METHODS, LocConfig, SceneLocalizer, evaluate_localization
+from localization.eval_loc import METHODS, MODELS, LocConfig, SceneLocalizer, evaluate_localization
 from localization.pose6_filter import cam_from_world_of, camera_at
 
 
@@ -58,7 +58,7 @@ def localize(args: argparse.Namespace) -> int:
     name = Path(args.query).name
     mapped = scene.without(name) if any(v.name == name for v in scene.views) else scene
     say(f"building the {args.method} map from {len(mapped)} photos")
-    loc = SceneLocalizer(mapped, args.method, LocConfig())
+    loc = SceneLocalizer(mapped, args.method, LocConfig(model=args.model))
     ibr_viz.rerun_setup(args, "ibrnav_localize", "localize.rrd")
     def on_step(k, particles, weights):
         rr.set_time("step", sequence=k)
@@ -95,12 +95,19 @@ def eval_loc(args: argparse.Namespace) -> int:
         rr.log("plots/rotation_error_deg", rr.Scalars(min(row["rotation_deg"], 180.0)))
 
     out = evaluate_localization(scene, args.method, args.trials or len(scene), args.spread_m, args.spread_deg,
-                                args.seed, LocConfig(), say, on_trial)
+                                args.seed, LocConfig(model=args.model), say, on_trial)
     ibr_viz.rerun_teardown(args)
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=2) + "\n")
     print(json.dumps({k: v for k, v in out.items() if k != "per_trial"}, indent=2))
     return 0
+
+
+def add_model_arg(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--model", choices=MODELS, default="auto",
+                        help="what the particle filter renders: the proxy textured from the photos "
+                        "(proxy), its vertex colours only (proxy-colors), the scene's own mesh (mesh); "
+                        "auto: the mesh when the scene has one, else proxy")
 
 
 def register(subparsers) -> None:
@@ -113,6 +120,7 @@ def register(subparsers) -> None:
                    "world_from_cam (deg), e.g. --prior=-7,-7,0.2,-90,20,0; default: around every map photo")
     p.add_argument("--spread", default="1.0,30", help="M,DEG: prior spread (default 1.0,30)")
     p.add_argument("--seed", type=int, default=0)
+    add_model_arg(p)
     ibr_viz.add_rerun_args(p)
     p.set_defaults(func=localize)
 
@@ -124,5 +132,6 @@ def register(subparsers) -> None:
     e.add_argument("--spread-deg", type=float, default=30.0, help="prior rotation spread (deg)")
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--json", help="write per-trial results and the summary here")
+    add_model_arg(e)
     ibr_viz.add_rerun_args(e)
     e.set_defaults(func=eval_loc)

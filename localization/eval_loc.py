@@ -23,10 +23,12 @@ from ibr.triangulation import Features, sift_features
 from localization.feature_localizer import FeatureLocalizerConfig, FeatureMap, pose_errors
 from localization.hybrid import HybridConfig, localize_hybrid
 from localization.lean_model import lean_mesh
-from localization.pose6_filter import Pose6Filter, Pose6FilterConfig, cam_from_world_of, sample_around
+from localization.photo_texture import PhotoTexture
+from localization.pose6_filter import Pose6Filter, Pose6FilterConfig, PriorBox, cam_from_world_of, sample_around
 from localization.render_likelihood import BatchedLikelihood, LikelihoodConfig, likelihood_renderer
 
 METHODS = ("pf", "pnp", "hybrid")
+MODELS = ("auto", "proxy", "proxy-colors", "mesh")
 
 
 class LocalizeError(InputError):
@@ -38,16 +40,18 @@ class LocConfig:
     """Settings of `SceneLocalizer` and `evaluate_localization`."""
 
     filter: Pose6FilterConfig = field(default_factory=lambda: Pose6FilterConfig(
-        n_particles=100, steps=20, sizes=((48, 32), (96, 64))))
-    """The 6-DoF particle filter (small defaults: llvmpipe renders every particle's view)."""
+        n_particles=100, n_initial=2000, steps=48, sizes=((48, 32), (96, 64), (192, 128), (384, 256))))
+    """The 6-DoF particle filter (100 particles: llvmpipe renders every particle's view)."""
     hybrid: HybridConfig = field(default_factory=HybridConfig)
     """Share and spread of the PnP proposal."""
     features: FeatureLocalizerConfig = field(default_factory=FeatureLocalizerConfig)
     """The feature map and PnP."""
     model: str = "auto"
-    """What the filter renders: "proxy" (from the photos, `build_proxy`), "mesh" (the scene's
-    own, e.g. a synthetic world's) or "auto" (the scene's mesh when it has one, else the proxy)."""
-    max_faces: int = 4000
+    """What the filter renders: "proxy" (the proxy mesh from the photos, `build_proxy`,
+    textured by projecting the photos onto it: `photo_texture`), "proxy-colors" (the same
+    proxy with its vertex colours only), "mesh" (the scene's own, e.g. a synthetic world's)
+    or "auto" (the scene's mesh when it has one, else "proxy")."""
+    max_faces: int = 16000
     """Triangles of the lean model the filter renders (decimated)."""
     success_m: float = 0.05
     """A query succeeds when its position error is below this (metres) ..."""
@@ -85,21 +89,29 @@ class SceneLocalizer:
             feats = features or [sift_features(v.image, n) for v in scene.views]
             self.feature_map = FeatureMap.from_features(scene.cameras, feats, config.features)
         if method in ("pf", "hybrid"):
-            self.mesh = lean_mesh(self._model_mesh(), config.max_faces)
-            light = getattr(scene.world, "light", None) if self._use_mesh() else None
-            self.likelihood = BatchedLikelihood(likelihood_renderer(self.mesh, ctx), LikelihoodConfig(), light)
+            self.likelihood = self._likelihood(ctx)
 
     def _use_mesh(self) -> bool:
         return self.config.model == "mesh" or (self.config.model == "auto" and self.scene.mesh is not None)
 
-    def _model_mesh(self):
-        if self.config.model not in ("auto", "mesh", "proxy"):
-            raise LocalizeError(f"unknown model {self.config.model!r}; use auto, mesh or proxy")
+    def _likelihood(self, ctx) -> BatchedLikelihood:
+        """The batched likelihood over the model `config.model` names (lean, decimated)."""
+        if self.config.model not in MODELS:
+            raise LocalizeError(f"unknown model {self.config.model!r}; use {', '.join(MODELS)}")
         if self._use_mesh():
             if self.scene.mesh is None:
                 raise LocalizeError(f"scene {self.scene.name!r} has no mesh; use the proxy model")
-            return self.scene.mesh
-        return build_proxy(self.scene).mesh
+            self.mesh = lean_mesh(self.scene.mesh, self.config.max_faces)
+            light = getattr(self.scene.world, "light", None)
+            return BatchedLikelihood(likelihood_renderer(self.mesh, ctx), LikelihoodConfig(), light)
+        self.mesh = lean_mesh(build_proxy(self.scene).mesh, self.config.max_faces)
+        if self.config.model == "proxy-colors":
+            return BatchedLikelihood(likelihood_renderer(self.mesh, ctx), LikelihoodConfig())
+        texture = PhotoTexture(self.mesh, self.scene.cameras, [v.image for v in self.scene.views], ctx=ctx)
+        renderer = likelihood_renderer(texture.textured_mesh(), ctx)
+        likelihood = BatchedLikelihood(renderer, LikelihoodConfig())
+        likelihood.focus = lambda eye: texture.focus(renderer, eye)
+        return likelihood
 
     def localize(self, image: np.ndarray, camera: Camera, prior: np.ndarray | None,
                  spread_m: float, spread_deg: float, rng: np.random.Generator,
@@ -112,9 +124,10 @@ class SceneLocalizer:
             r = self.feature_map.localize(image, camera)
             return LocResult(None if r is None else r.cam_from_world, time.perf_counter() - t,
                              0 if r is None else r.n_inliers)
-        n = self.config.filter.n_particles
+        n = max(self.config.filter.n_particles, self.config.filter.n_initial)
         particles = self._prior_particles(prior, n, spread_m, np.radians(spread_deg), rng)
-        pf = Pose6Filter(self.likelihood, self.config.filter, rng)
+        box = None if prior is None else PriorBox(prior, spread_m, np.radians(spread_deg))
+        pf = Pose6Filter(self.likelihood, self.config.filter, rng, box)
         if self.method == "pf":
             est, inliers = pf.run(image, camera, particles, on_step=on_step), 0
         else:

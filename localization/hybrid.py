@@ -4,14 +4,15 @@ from the measurement rather than from the motion model).
 
 When the photo's SIFT features match the map (Foster, Wang & Grupen, IV-B), pycolmap's
 RANSAC PnP gives a pose; every filter step then replaces a fraction of the particles with
-samples around it, at the filter's current (annealed) noise, and the rendered-view
+samples around it, at the filter's current random-walk noise, and the rendered-view
 likelihood (Heigl et al.) weights them like the others. When features do not match, PnP
 fails and the filter runs on the rendered likelihood alone.
 
 With `HybridConfig.feature_weight` > 0 the PnP inliers are also a second measurement: each
 particle's weight gains a truncated reprojection log-likelihood of those correspondences
-(sensor fusion). On Strecha's proxies the rendered likelihood alone has false maxima
-within the +-1 m prior that out-score the true pose, so the proposal alone is not enough.
+(sensor fusion). With a vertex-coloured proxy (`--model proxy-colors`) the rendered
+likelihood alone has false maxima within the +-1 m prior that out-score the true pose, and
+the proposal alone is not enough; the feature term pins the pose to the inliers.
 """
 
 from __future__ import annotations
@@ -51,11 +52,11 @@ class HybridResult:
 
 
 def pnp_proposal(pnp: PnPResult, pf: Pose6Filter, n: int, sigma_scale: float, rng: np.random.Generator):
-    """proposal(step) -> (n, 6) particles around the PnP pose at the step's annealed noise."""
+    """proposal(step) -> (n, 6) particles around the PnP pose at the filter's current random-walk noise."""
     centre = particles_from_cam_from_world(pnp.cam_from_world)
 
     def proposal(step: int) -> np.ndarray:
-        sigma_m, sigma_rad, _, _ = pf.schedule(step)
+        sigma_m, sigma_rad = pf.sigma
         return perturb(np.repeat(centre, n, axis=0), sigma_scale * sigma_m, sigma_scale * sigma_rad, rng)
     return proposal
 

@@ -2,15 +2,20 @@
 
 Heigl et al. (light-field particle filter): each particle's weight compares the photo with
 the view the model renders at the particle's pose. For a single, static photo the filter is
-iterated on the same image (Loc-NeRF, Maggio et al. 2023): a random-walk motion model whose
-noise is annealed from a coarse to a fine scale, tempered weights (the temperature falls
-with the noise), systematic resampling (filterpy; not residual, filterpy issue #290), and a
-random perturbation of a fraction of the particles at the coarse scale every step, so the
-filter can still leave a wrong basin. Views are compared coarse-to-fine.
+iterated on the same image (Loc-NeRF, Maggio et al. 2023), as an annealed particle filter
+(Deutscher, Blake & Reid 2000): a wide first sample from the prior thinned to N particles;
+each step a random walk whose covariance is a fraction of the particles' own (so it follows
+the posterior's shape, e.g. the ridge along which a narrow camera trades sideways motion for
+yaw, and shrinks with it); weights tempered so that a fixed share of the particles survives;
+systematic resampling (filterpy; not residual, filterpy issue #290); and a random
+perturbation of a fraction of the particles at a wide scale every step, so the filter can
+still leave a wrong basin. Views are compared coarse-to-fine (48x32 up to 384x256 by
+default), and the model may re-focus on the current estimate at each finer size.
 
 Particles are (N, 6): camera centre (world, metres) and the rotation vector (radians) of
-`world_from_cam`'s rotation. The model is a `BatchedLikelihood` over a mesh (for Strecha:
-the proxy of `ibr.proxy_geometry.build_proxy`, vertex-coloured, rendered unlit).
+`world_from_cam`'s rotation. The model is a `BatchedLikelihood` over a mesh (for photos:
+the proxy of `ibr.proxy_geometry.build_proxy` textured from the photos,
+`localization.photo_texture`, rendered unlit).
 """
 
 from __future__ import annotations
@@ -33,16 +38,25 @@ class Pose6FilterConfig:
 
     n_particles: int = 300
     """Particles (Loc-NeRF uses 300)."""
+    n_initial: int = 1000
+    """Particles drawn from the prior and weighted at the first step, then resampled down to
+    `n_particles`: a +-1 m / +-30 deg prior is a large 6-D volume to cover."""
     steps: int = 30
     """Filter iterations on the one photo."""
-    sigma_m: tuple[float, float] = (0.15, 0.005)
-    """Random-walk position noise (metres, 1-sigma) at the first and the last step (geometric)."""
-    sigma_deg: tuple[float, float] = (4.0, 0.15)
-    """Random-walk rotation noise (degrees, 1-sigma) at the first and the last step."""
+    ess_fraction: float = 0.5
+    """Annealing: each step's temperature is the one at which the effective sample size of
+    the weights is this fraction of the particles (Deutscher et al.'s survival rate)."""
+    temperature: tuple[float, float] = (0.2, 0.002)
+    """Bounds of the temperature (NCC units): hottest and coldest allowed."""
+    diffusion: float = 0.6
+    """Random-walk noise = diffusion x the particles' own spread (6-D covariance of centre
+    and rotation offsets), so the noise follows the posterior's shape and shrinks with it."""
+    sigma_floor: tuple[float, float] = (0.002, 0.03)
+    """Smallest random-walk noise (metres, degrees, 1-sigma), added to the covariance."""
+    sigma_wide: tuple[float, float] = (0.15, 4.0)
+    """Noise (metres, degrees) of the perturbed fraction, which keeps exploring."""
     perturb_fraction: float = 0.1
-    """Fraction of particles perturbed with the first step's noise every step."""
-    temperature: tuple[float, float] = (0.03, 0.005)
-    """Likelihood temperature (NCC units) at the first and the last step (tempering)."""
+    """Fraction of particles perturbed with `sigma_wide` every step."""
     coverage_ref: float = 0.5
     """Covered fraction of the view above which the model earns no more credit: a proxy
     covers only part of a real photo, and rewarding coverage pulls the views onto it."""
@@ -50,11 +64,33 @@ class Pose6FilterConfig:
     """Comparison sizes (width, height), coarse to fine, each used for an equal share of the steps."""
 
 
-def ncc_loglik(scores: np.ndarray, temperature: float, coverage_ref: float) -> np.ndarray:
-    """(N,) log-likelihoods from tile scores (N, 4) (ncc, mse, coverage, _):
-    -(1 - NCC * min(1, coverage / coverage_ref)) / temperature. Views covering less than
-    `coverage_ref` of the frame are discounted (uncovered pixels count as uncorrelated)."""
-    return -(1.0 - scores[:, 0] * np.minimum(1.0, scores[:, 2] / coverage_ref)) / temperature
+def ncc_cost(scores: np.ndarray, coverage_ref: float) -> np.ndarray:
+    """(N,) costs from tile scores (N, 4) (ncc, mse, coverage, _): 1 - NCC * min(1, coverage /
+    coverage_ref), in [0, 2], 0 for a perfect match. Views covering less than `coverage_ref`
+    of the frame are discounted (uncovered pixels count as uncorrelated). The tempered
+    log-likelihood is -cost / temperature."""
+    return 1.0 - scores[:, 0] * np.minimum(1.0, scores[:, 2] / coverage_ref)
+
+
+def annealing_temperature(cost: np.ndarray, ess_fraction: float, bounds: tuple[float, float]) -> float:
+    """The temperature at which the weights exp(-cost / T) have an effective sample size of
+    `ess_fraction` x N (Deutscher, Blake & Reid 2000, annealed particle filter: a fixed
+    survival rate), by bisection on log T within bounds (hottest, coldest)."""
+    c = cost - cost.min()
+
+    def ess(t: float) -> float:
+        w = np.exp(-c / t)
+        return w.sum() ** 2 / (w @ w) / len(c)
+
+    hot, cold = np.log(bounds[0]), np.log(bounds[1])
+    if ess(np.exp(cold)) >= ess_fraction:
+        return float(np.exp(cold))
+    if ess(np.exp(hot)) <= ess_fraction:
+        return float(np.exp(hot))
+    for _ in range(30):
+        mid = 0.5 * (hot + cold)
+        hot, cold = (mid, cold) if ess(np.exp(mid)) >= ess_fraction else (hot, mid)
+    return float(np.exp(hot))
 
 
 def cam_from_world_of(particles: np.ndarray) -> np.ndarray:
@@ -79,10 +115,33 @@ def particles_from_cam_from_world(T: np.ndarray) -> np.ndarray:
 def perturb(particles: np.ndarray, sigma_m: float, sigma_rad: float, rng: np.random.Generator) -> np.ndarray:
     """Random walk: centre + N(0, sigma_m^2 I), rotation composed with exp(N(0, sigma_rad^2 I))
     in the camera frame."""
-    n = len(particles)
-    c = particles[:, :3] + rng.normal(scale=sigma_m, size=(n, 3))
-    R = Rotation.from_rotvec(particles[:, 3:]) * Rotation.from_rotvec(rng.normal(scale=sigma_rad, size=(n, 3)))
-    return np.c_[c, R.as_rotvec()]
+    return apply_offsets(particles, np.c_[rng.normal(scale=sigma_m, size=(len(particles), 3)),
+                                          rng.normal(scale=sigma_rad, size=(len(particles), 3))])
+
+
+def apply_offsets(particles: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """Particles (N, 6) moved by offsets (N, 6): centre + offset[:3] (world metres),
+    rotation composed with exp(offset[3:]) in the camera frame (radians)."""
+    R = Rotation.from_rotvec(particles[:, 3:]) * Rotation.from_rotvec(offsets[:, 3:])
+    return np.c_[particles[:, :3] + offsets[:, :3], R.as_rotvec()]
+
+
+def pose_covariance(particles: np.ndarray) -> np.ndarray:
+    """(6, 6) covariance of the particles' offsets from their mean pose: centre (metres) and
+    the rotation vector of mean^-1 * R (radians, camera frame)."""
+    mean = particles_from_cam_from_world(weighted_pose(particles, np.ones(len(particles))))[0]
+    R0 = Rotation.from_rotvec(mean[3:])
+    rot = (R0.inv() * Rotation.from_rotvec(particles[:, 3:])).as_rotvec()
+    return np.cov(np.c_[particles[:, :3] - mean[:3], rot].T)
+
+
+def diffuse(particles: np.ndarray, scale: float, floor: tuple[float, float],
+            rng: np.random.Generator) -> np.ndarray:
+    """The annealed particle filter's random walk (Deutscher et al. 2000): Gaussian noise
+    with scale^2 x the particles' own covariance (`pose_covariance`) plus a floor
+    (metres, radians) on the diagonal."""
+    cov = scale ** 2 * pose_covariance(particles) + np.diag([floor[0] ** 2] * 3 + [floor[1] ** 2] * 3)
+    return apply_offsets(particles, rng.multivariate_normal(np.zeros(6), cov, size=len(particles)))
 
 
 def sample_around(cam_from_world: np.ndarray, n: int, spread_m: float, spread_rad: float,
@@ -95,6 +154,23 @@ def sample_around(cam_from_world: np.ndarray, n: int, spread_m: float, spread_ra
     axis /= np.linalg.norm(axis, axis=1, keepdims=True)
     dR = Rotation.from_rotvec(axis * rng.uniform(0, spread_rad, (n, 1)))
     return np.c_[c, (Rotation.from_rotvec(p[3:]) * dR).as_rotvec()]
+
+
+@dataclass(frozen=True)
+class PriorBox:
+    """The support of `sample_around`'s uniform prior: centres within +-spread_m (metres) per
+    axis of the pose's centre, rotations within spread_rad (radians) of its rotation.
+    cam_from_world: (4, 4) the prior pose."""
+
+    cam_from_world: np.ndarray
+    spread_m: float
+    spread_rad: float
+
+    def contains(self, particles: np.ndarray) -> np.ndarray:
+        """(N,) bool: which particles (N, 6) lie inside the prior's support."""
+        p = particles_from_cam_from_world(self.cam_from_world)[0]
+        dR = Rotation.from_rotvec(p[3:]).inv() * Rotation.from_rotvec(particles[:, 3:])
+        return (np.abs(particles[:, :3] - p[:3]).max(axis=1) <= self.spread_m) & (dR.magnitude() <= self.spread_rad)
 
 
 def weighted_pose(particles: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -122,62 +198,90 @@ class Pose6Estimate:
 
 class Pose6Filter:
     """Localise one photo: `run(image, camera, particles)`; `proposal(step)` may return extra
-    particles (M, 6) to mix in each step (the hybrid's PnP proposal), weighted like the rest."""
+    particles (M, 6) to mix in each step (the hybrid's PnP proposal), weighted like the rest.
+    prior: the support of the prior the particles were drawn from; the posterior is zero
+    outside it, so particles that the random walk carries out of it get no weight (without
+    it, a view that sees little of the model can lure the filter metres away). `sigma` is
+    the current random walk's (metres, radians) 1-sigma scale, for proposals."""
 
-    def __init__(self, likelihood: BatchedLikelihood, config: Pose6FilterConfig, rng: np.random.Generator):
-        self.likelihood, self.config, self.rng = likelihood, config, rng
+    def __init__(self, likelihood: BatchedLikelihood, config: Pose6FilterConfig, rng: np.random.Generator,
+                 prior: PriorBox | None = None):
+        self.likelihood, self.config, self.rng, self.prior = likelihood, config, rng, prior
+        self.sigma = (config.sigma_wide[0], np.radians(config.sigma_wide[1]))
 
-    def schedule(self, k: int) -> tuple[float, float, float, tuple[int, int]]:
-        """(sigma_m, sigma_rad, temperature, size) at step k: geometric annealing."""
+    def size_at(self, k: int) -> tuple[int, int]:
+        """Comparison size at step k: coarse to fine, an equal share of the steps each."""
         c = self.config
-        a = k / max(c.steps - 1, 1)
-        geo = lambda pair: pair[0] * (pair[1] / pair[0]) ** a  # noqa: E731
-        size = c.sizes[min(int(a * len(c.sizes)), len(c.sizes) - 1)]
-        return geo(c.sigma_m), np.radians(geo(c.sigma_deg)), geo(c.temperature), size
+        return c.sizes[min(k * len(c.sizes) // max(c.steps, 1), len(c.sizes) - 1)]
 
-    def loglik(self, particles: np.ndarray, camera: Camera, size: tuple[int, int], temperature: float) -> np.ndarray:
-        """(N,) tempered log-likelihoods of particles against the current observation."""
+    def cost(self, particles: np.ndarray, camera: Camera, size: tuple[int, int]) -> np.ndarray:
+        """(N,) `ncc_cost` of particles against the current observation at `size`."""
         m = self.likelihood.model
         template = camera.scaled(size[0] / camera.width)
         template = Camera(template.K, size[0], size[1])
         clip = template.gl_projection(m.near, m.far) @ cam_from_world_of(particles)
-        scores = self.likelihood.view_scores(clip, particles[:, :3])
-        return ncc_loglik(scores, temperature, self.config.coverage_ref)
+        return ncc_cost(self.likelihood.view_scores(clip, particles[:, :3]), self.config.coverage_ref)
+
+    def _move(self, particles: np.ndarray) -> np.ndarray:
+        """Diffuse every particle by the particle spread; perturb a fraction widely."""
+        c, rng = self.config, self.rng
+        floor = (c.sigma_floor[0], np.radians(c.sigma_floor[1]))
+        wide = (c.sigma_wide[0], np.radians(c.sigma_wide[1]))
+        cov = pose_covariance(particles)
+        self.sigma = (c.diffusion * np.sqrt(np.trace(cov[:3, :3]) / 3) + floor[0],
+                      c.diffusion * np.sqrt(np.trace(cov[3:, 3:]) / 3) + floor[1])
+        particles = diffuse(particles, c.diffusion, floor, rng)
+        jump = rng.random(len(particles)) < c.perturb_fraction
+        particles[jump] = perturb(particles[jump], *wide, rng)
+        return particles
+
+    def weights(self, particles: np.ndarray, camera: Camera, size: tuple[int, int],
+                extra_loglik: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
+        """(N,) normalised weights: the rendered likelihood tempered to the annealing
+        temperature, zero outside the prior's support, times exp(extra_loglik)."""
+        c = self.config
+        cost = self.cost(particles, camera, size)
+        inside = self.prior.contains(particles) if self.prior is not None else np.ones(len(cost), bool)
+        if not inside.any():
+            inside[:] = True
+        ll = np.where(inside, -cost / annealing_temperature(cost[inside], c.ess_fraction, c.temperature), -np.inf)
+        if extra_loglik is not None:
+            ll = ll + extra_loglik(particles)
+        w = np.exp(ll - ll.max())
+        return w / w.sum()
 
     def run(self, image: np.ndarray, camera: Camera, particles: np.ndarray,
             proposal: Callable[[int], np.ndarray | None] | None = None,
             on_step: Callable[[int, np.ndarray, np.ndarray], None] | None = None,
             extra_loglik: Callable[[np.ndarray], np.ndarray] | None = None) -> Pose6Estimate:
         """Iterate the filter on `image` ((H, W, 3) uint8) taken by a camera with the
-        intrinsics of `camera` (pose ignored), from initial particles (N, 6).
-        proposal(step): particles (M, 6) replacing the last M each step (mixture proposal);
-        extra_loglik(particles): (N,) log-likelihood of another sensor, added to the weights."""
+        intrinsics of `camera` (pose ignored), from initial particles (N, 6) (N may exceed
+        `n_particles`: the first step thins them). proposal(step): particles (M, 6)
+        replacing the last M each step (mixture proposal); extra_loglik(particles): (N,)
+        log-likelihood of another sensor, added to the tempered weights."""
         c, rng = self.config, self.rng
         history, size_set = [], None
-        p0_m, p0_rad = c.sigma_m[0], np.radians(c.sigma_deg[0])
         for k in range(c.steps):
-            sigma_m, sigma_rad, temperature, size = self.schedule(k)
+            size = self.size_at(k)
             if size != size_set:
                 self.likelihood.set_observation(image, size)
+                if self.likelihood.focus is not None:
+                    self.likelihood.focus(particles[:, :3].mean(axis=0))
                 size_set = size
             if k > 0:
-                particles = perturb(particles, sigma_m, sigma_rad, rng)
-                wide = rng.random(len(particles)) < c.perturb_fraction
-                particles[wide] = perturb(particles[wide], p0_m, p0_rad, rng)
+                particles = self._move(particles)
             extra = proposal(k) if proposal else None
             if extra is not None and len(extra):
                 particles = np.r_[particles[: len(particles) - len(extra)], extra]
-            ll = self.loglik(particles, camera, size, temperature)
-            if extra_loglik is not None:
-                ll = ll + extra_loglik(particles)
-            w = np.exp(ll - ll.max())
-            w /= w.sum()
+            w = self.weights(particles, camera, size, extra_loglik)
             history.append(weighted_pose(particles, w))
             if on_step:
                 on_step(k, particles, w)
             if k < c.steps - 1:
                 with _numpy_random_from(rng):
                     particles = particles[systematic_resample(w)]
+                if len(particles) > c.n_particles:  # the wide first sample, thinned
+                    particles = particles[rng.choice(len(particles), c.n_particles, replace=False)]
         best = cam_from_world_of(particles[np.argmax(w)][None])[0]
         return Pose6Estimate(history[-1], best, particles, w, history)
 

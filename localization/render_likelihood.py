@@ -17,6 +17,7 @@ model are penalised rather than scored on a few lucky pixels.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -80,6 +81,10 @@ class BatchedLikelihood:
         self.ctx = model.ctx
         self.program = load_compute(self.ctx, "tile_compare", package="localization")
         self._observed = None
+        self.focus: Callable[[np.ndarray], None] | None = None
+        """focus(eye): adapt the model to views near `eye` (world metres), e.g. re-choose which
+        photo textures each face (`localization.photo_texture.PhotoTexture.focus`); None: a
+        fixed model. Filters call it when they move to a finer comparison size."""
 
     def set_observation(self, image: np.ndarray, size: tuple[int, int] | None = None) -> None:
         """The camera image (H, W, 3) uint8 to compare with, at `size` (default config.size)."""

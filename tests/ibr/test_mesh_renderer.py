@@ -49,3 +49,13 @@ def test_lighting_brightens_towards_the_light_and_highlights_shiny(gl_ctx):
     centre, corner = dull[24, 32].astype(int), dull[0, 0].astype(int)
     assert (centre > corner).all()
     assert shiny[24, 32].sum() > dull[24, 32].sum()
+
+
+def test_released_renderer_leaves_the_context_usable(gl_ctx):
+    """`release` frees the renderer's framebuffers while one is bound; the next renderer on
+    the shared context draws the same picture without a GL error (checked by conftest)."""
+    cam = Camera.look_at((0, -5, 0), (0, 0, 0), intrinsics_from_fov(60, 64, 48), 64, 48)
+    first = MeshRenderer(trimesh.creation.box(), gl_ctx)
+    before = first.render(cam).depth
+    first.release()
+    np.testing.assert_array_equal(MeshRenderer(trimesh.creation.box(), gl_ctx).render(cam).depth, before)

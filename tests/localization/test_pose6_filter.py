@@ -9,10 +9,11 @@ from ibr.scene import load_scene
 from localization.eval_loc import LocConfig, SceneLocalizer, draw_prior
 from localization.feature_localizer import PnPResult, pose_errors
 from localization.hybrid import HybridConfig, localize_hybrid
-from localization.pose6_filter import (Pose6Filter, Pose6FilterConfig, cam_from_world_of,
-                                       particles_from_cam_from_world, sample_around, weighted_pose)
+from localization.pose6_filter import (Pose6Filter, Pose6FilterConfig, PriorBox, annealing_temperature, apply_offsets,
+                                       cam_from_world_of, diffuse, particles_from_cam_from_world, pose_covariance,
+                                       sample_around, weighted_pose)
 
-SMALL = Pose6FilterConfig(n_particles=150, steps=20, sizes=((40, 30), (80, 60)))
+SMALL = Pose6FilterConfig(n_particles=150, n_initial=300, steps=20, sizes=((40, 30), (80, 60)))
 
 
 @pytest.fixture(scope="module")
@@ -78,3 +79,57 @@ def test_hybrid_with_a_pnp_proposal_converges_from_a_wrong_prior(pf_setup):
     res = localize_hybrid(pf, None, held.image, held.camera, particles, HybridConfig(), pnp=pnp)
     pos, rot = pose_errors(res.estimate.cam_from_world, truth)
     assert pos < 0.02 and rot < 0.5, (pose_errors(prior, truth), pos, rot)
+
+
+def test_annealing_temperature_keeps_the_asked_share_of_effective_particles():
+    cost = np.random.default_rng(0).uniform(0.1, 0.6, 500)
+    for fraction in (0.2, 0.5, 0.8):
+        t = annealing_temperature(cost, fraction, (10.0, 1e-4))
+        w = np.exp(-(cost - cost.min()) / t)
+        assert abs(w.sum() ** 2 / (w @ w) / len(cost) - fraction) < 1e-3
+    # clamped to the bounds: equal costs never need cooling, a huge spread hits the hottest bound
+    assert annealing_temperature(np.full(10, 0.3), 0.5, (0.2, 0.002)) == pytest.approx(0.002)
+    assert annealing_temperature(np.r_[0.0, np.full(99, 50.0)], 0.5, (0.2, 0.002)) == pytest.approx(0.2)
+
+
+def test_diffusion_follows_the_particles_covariance():
+    rng = np.random.default_rng(0)
+    base = particles_from_cam_from_world(np.eye(4))
+    # particles spread along a diagonal of x and yaw (the ridge a narrow camera sees)
+    s = rng.normal(size=(4000, 1))
+    ridge = np.c_[0.1 * s, np.zeros((4000, 3)), 0.02 * s, np.zeros((4000, 1))]
+    particles = apply_offsets(np.repeat(base, 4000, axis=0), ridge)
+    cov = pose_covariance(particles)
+    assert cov[0, 4] / np.sqrt(cov[0, 0] * cov[4, 4]) > 0.99
+    moved = diffuse(particles, 0.5, (0.001, 0.0001), rng)
+    step = pose_covariance(np.c_[moved[:, :3] - particles[:, :3], np.zeros((4000, 3))])[:3, :3]
+    np.testing.assert_allclose(step[0, 0], 0.25 * cov[0, 0] + 0.001 ** 2, rtol=0.1)
+    assert step[1, 1] < 0.01 * step[0, 0]  # no spread where the particles have none
+
+
+@pytest.mark.realdata
+def test_pf_localises_a_held_out_fountain_photo_from_a_1m_30deg_prior(strecha_dir):
+    """The render-only filter (photo-textured proxy, eval-loc's settings) on fountain-P11
+    with 0005 held out, from a prior drawn +-1 m / +-30 deg around the truth: under 5 cm / 5 deg."""
+    scene = load_scene(strecha_dir / "fountain-P11")
+    held = scene.view("0005.jpg")
+    loc = SceneLocalizer(scene.without(held.name), "pf")
+    rng = np.random.default_rng(0)
+    truth = held.camera.cam_from_world
+    prior = draw_prior(truth, 1.0, 30.0, rng)
+    res = loc.localize(held.image, held.camera, prior, 1.0, 30.0, rng)
+    pos, rot = pose_errors(res.cam_from_world, truth)
+    assert pose_errors(prior, truth)[0] > 0.3
+    assert pos < 0.05 and rot < 5.0, (pose_errors(prior, truth), pos, rot)
+
+
+def test_prior_box_contains_exactly_what_sample_around_draws():
+    rng = np.random.default_rng(4)
+    pose = cam_from_world_of(np.array([[1.0, -2.0, 0.5, 0.3, -1.2, 2.0]]))[0]
+    box = PriorBox(pose, 1.0, np.radians(30))
+    assert box.contains(sample_around(pose, 500, 1.0, np.radians(30), rng)).all()
+    outside = sample_around(pose, 200, 1.0, np.radians(30), rng)
+    outside[:100, 0] += 2.0  # 1-3 m off in x
+    turned = Rotation.from_matrix(pose[:3, :3].T) * Rotation.from_euler("x", 35, degrees=True)
+    outside[100:] = np.r_[particles_from_cam_from_world(pose)[0, :3], turned.as_rotvec()]  # 35 deg off
+    assert not box.contains(outside).any()
