@@ -91,6 +91,12 @@ class SceneLocalizer:
         if method in ("pf", "hybrid"):
             self.likelihood = self._likelihood(ctx)
 
+    def release(self) -> None:
+        """Free the filter's GL model (call when done with this localiser)."""
+        if self.likelihood is not None:
+            self.likelihood.release()
+            self.likelihood = None
+
     def _use_mesh(self) -> bool:
         return self.config.model == "mesh" or (self.config.model == "auto" and self.scene.mesh is not None)
 
@@ -176,7 +182,9 @@ def evaluate_localization(scene: Scene, method: str, trials: int, spread_m: floa
         held = scene.views[k]
         if k not in localizers:
             say(f"map without {held.name}")
-            localizers.clear()  # one map at a time: a GL model each
+            for loc in localizers.values():  # one map at a time: a GL model each
+                loc.release()
+            localizers.clear()
             others = [f for j, f in enumerate(feats) if j != k] if feats else None
             localizers[k] = SceneLocalizer(scene.without(held.name), method, config, others)
         rng = np.random.default_rng(seed + i)
@@ -190,6 +198,8 @@ def evaluate_localization(scene: Scene, method: str, trials: int, spread_m: floa
         say(f"[{i + 1}/{trials}] {held.name}: {pos:.4f} m, {rot:.3f} deg, {res.seconds:.2f} s")
         if on_trial:
             on_trial(i, held, res, rows[-1])
+    for loc in localizers.values():
+        loc.release()
     return {"scene": scene.name, "method": method, "trials": trials, "spread_m": spread_m,
             "spread_deg": spread_deg, "seed": seed, **summarise(rows), "per_trial": rows}
 

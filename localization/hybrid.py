@@ -88,7 +88,7 @@ def localize_hybrid(pf: Pose6Filter, features: FeatureMap, image: np.ndarray, ca
         pnp = features.localize(image, camera)
     proposal = extra = None
     if pnp is not None:
-        n = max(1, int(round(config.pnp_fraction * len(particles))))
+        n = max(1, round(config.pnp_fraction * pf.config.n_particles))  # of the thinned set
         proposal = pnp_proposal(pnp, pf, n, config.pnp_sigma_scale, pf.rng)
         if config.feature_weight > 0 and pnp.inlier_xyz is not None:
             extra = reprojection_loglik(pnp, camera, config)

@@ -272,7 +272,7 @@ class Pose6Filter:
                 particles = self._move(particles)
             extra = proposal(k) if proposal else None
             if extra is not None and len(extra):
-                particles = np.r_[particles[: len(particles) - len(extra)], extra]
+                particles = np.r_[particles[: max(len(particles) - len(extra), 0)], extra][-len(particles):]
             w = self.weights(particles, camera, size, extra_loglik)
             history.append(weighted_pose(particles, w))
             if on_step:

@@ -86,6 +86,15 @@ class BatchedLikelihood:
         photo textures each face (`localization.photo_texture.PhotoTexture.focus`); None: a
         fixed model. Filters call it when they move to a finer comparison size."""
 
+    def release(self) -> None:
+        """Free the GL objects: the model's renderer (and its atlas framebuffers, hundreds of
+        MB at 384x256 x 128 views), the observation and the compare program."""
+        self.model.release()
+        self.program.release()
+        if self._observed is not None:
+            self._observed.release()
+            self._observed = None
+
     def set_observation(self, image: np.ndarray, size: tuple[int, int] | None = None) -> None:
         """The camera image (H, W, 3) uint8 to compare with, at `size` (default config.size)."""
         size = size or self.config.size
