@@ -4,11 +4,15 @@ projecting the posed source photos onto it.
 Heigl et al. weight a particle by comparing the camera image with the view the image-based
 model (their light field) renders at the particle's pose. A vertex-coloured proxy is too
 blurry a stand-in for real photos: its NCC peaks away from the true pose. Here every face
-of the (lean) proxy is textured from one source photo, the one that sees it visible,
-frontal and with the most pixels per metre (the "best view" of view-dependent texture
-mapping, Debevec et al. 1996, with one view per face). Its texture coordinates are the
-face's projection into that photo, so rendering the mesh is projective texturing from the
-photos, and the batched likelihood pass (`render_likelihood`) draws it unchanged.
+of the (lean) proxy is textured from one source photo that sees it (visible by a depth
+test, not too oblique). Its texture coordinates are the face's projection into that photo,
+so rendering the mesh is projective texturing from the photos, and the batched likelihood
+pass (`render_likelihood`) draws it unchanged. Which photo: the one with the most pixels
+per metre, or, once the filter knows roughly where it is (`PhotoTexture.focus`), the one
+whose ray to the face is closest in angle to the ray from there: Buehler et al.'s angular
+penalty (unstructured lumigraph rendering) with one view per face, as in view-dependent
+texture mapping (Debevec et al. 1996). The proxy's depth errors then displace the texture
+least for the views the filter compares.
 
 Frames and units: world metres; texture coordinates follow trimesh (v = 0 at the bottom).
 """
@@ -29,7 +33,7 @@ from ibr.mesh_renderer import MeshRenderer, mesh_vertex_data
 
 @dataclass(frozen=True)
 class PhotoTextureConfig:
-    """Settings of `photo_textured_mesh`."""
+    """Settings of `PhotoTexture`."""
 
     cell_width: int = 768
     """Width in pixels each source photo is stored at in the texture atlas."""
@@ -75,27 +79,27 @@ Cell = tuple[int, int, float]
 
 
 def atlas_of(images: list[np.ndarray], cell_width: int,
-             palette: np.ndarray) -> tuple[np.ndarray, list[Cell], tuple[int, int]]:
+             palette: np.ndarray) -> tuple[np.ndarray, list[Cell], np.ndarray]:
     """Pack photos (each scaled to `cell_width` wide) in a grid and a palette of flat colours
     (P, 3) uint8 (one 4x4 texel block each) below it. Returns the atlas (H, W, 3) uint8, per
-    photo (x0, y0, scale) and the palette's (x0, y0)."""
+    photo (x0, y0, scale), and the palette blocks' centres (P, 2) in atlas texels."""
     scaled = [cv2.resize(im, (cell_width, round(im.shape[0] * cell_width / im.shape[1])),
                          interpolation=cv2.INTER_AREA) for im in images]
     cols = int(np.ceil(np.sqrt(len(scaled))))
     rows = -(-len(scaled) // cols)
     ch = max(s.shape[0] for s in scaled)
     per_row = cols * cell_width // 4
-    pal_rows = -(-len(palette) // per_row) if len(palette) else 0
-    atlas = np.zeros((rows * ch + 4 * pal_rows, cols * cell_width, 3), np.uint8)
+    j = np.arange(len(palette))
+    corner = np.c_[4 * (j % per_row), rows * ch + 4 * (j // per_row)]
+    atlas = np.zeros((rows * ch + 4 * -(-len(palette) // per_row), cols * cell_width, 3), np.uint8)
     cells = []
     for i, s in enumerate(scaled):
         x0, y0 = (i % cols) * cell_width, (i // cols) * ch
         atlas[y0:y0 + s.shape[0], x0:x0 + cell_width] = s
         cells.append((x0, y0, cell_width / images[i].shape[1]))
-    for j, c in enumerate(palette):
-        x0, y0 = 4 * (j % per_row), rows * ch + 4 * (j // per_row)
+    for (x0, y0), c in zip(corner, palette):
         atlas[y0:y0 + 4, x0:x0 + 4] = c
-    return atlas, cells, (0, rows * ch)
+    return atlas, cells, corner + 2.0
 
 
 def select_views(score: np.ndarray, centroids: np.ndarray, centres: np.ndarray,
@@ -131,7 +135,7 @@ class PhotoTexture:
         if mesh.visual.kind == "vertex" and len(self.unseen):
             rgb = np.asarray(mesh.visual.vertex_colors)[mesh.faces[self.unseen], :3]
             palette = rgb.mean(axis=1).astype(np.uint8)
-        self.atlas, self.cells, self.palette_origin = atlas_of(images, config.cell_width, palette)
+        self.atlas, self.cells, self.palette_texels = atlas_of(images, config.cell_width, palette)
 
     def uv(self, eye: np.ndarray | None = None) -> np.ndarray:
         """(3F, 2) texture coordinates of the split vertices for the photo choice of
@@ -143,12 +147,9 @@ class PhotoTexture:
         for n, cam in enumerate(self.cameras):
             faces = np.flatnonzero(choice == n)
             x0, y0, s = self.cells[n]
-            uv, _ = cam.project(tri[faces].reshape(-1, 3))
-            texel[faces] = uv.reshape(-1, 3, 2) * s + [x0, y0]
-        j = np.arange(len(self.unseen))
-        per_row = W // 4
-        texel[self.unseen] = np.stack([self.palette_origin[0] + 4 * (j % per_row) + 2.0,
-                                       self.palette_origin[1] + 4 * (j // per_row) + 2.0], axis=1)[:, None]
+            uv, _ = cam.project(tri[faces].reshape(-1, 3))  # pixel centres at integers
+            texel[faces] = (uv.reshape(-1, 3, 2) + 0.5) * s + [x0, y0]
+        texel[self.unseen] = self.palette_texels[:, None]
         return np.c_[texel[..., 0].ravel() / W, 1.0 - texel[..., 1].ravel() / H]
 
     def textured_mesh(self, eye: np.ndarray | None = None) -> trimesh.Trimesh:
@@ -161,10 +162,3 @@ class PhotoTexture:
         """Re-choose the faces' photos for views near `eye` (world metres) in a renderer of
         `textured_mesh()`: only its vertex buffer is rewritten."""
         renderer.vbo.write(mesh_vertex_data(self.textured_mesh(eye))[0].tobytes())
-
-
-def photo_textured_mesh(mesh: trimesh.Trimesh, cameras: list[Camera], images: list[np.ndarray],
-                        config: PhotoTextureConfig = PhotoTextureConfig(),
-                        ctx: moderngl.Context | None = None) -> trimesh.Trimesh:
-    """`mesh` textured from posed photos, each face from its best photo (`PhotoTexture`)."""
-    return PhotoTexture(mesh, cameras, images, config, ctx).textured_mesh()
