@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import re
+import sys
 
 import numpy as np
 import rerun as rr
@@ -92,7 +93,7 @@ def rerun_setup(args: argparse.Namespace, app_id: str, default_save: str | None)
     rr.script_setup(args, app_id)
     rr.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     if getattr(args, "save", None):
-        print(f"recording to {args.save} (open it with: rerun {args.save})")
+        print(f"recording to {args.save} (open it with: rerun {args.save})", file=sys.stderr)
 
 
 def rerun_teardown(args: argparse.Namespace) -> None:
