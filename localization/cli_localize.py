@@ -60,6 +60,8 @@ def localize(args: argparse.Namespace) -> int:
     say(f"building the {args.method} map from {len(mapped)} photos")
     loc = SceneLocalizer(mapped, args.method, LocConfig(model=args.model))
     ibr_viz.rerun_setup(args, "ibrnav_localize", "localize.rrd")
+    if loc.likelihood is not None:
+        ibr_viz.log_mesh("world/map/mesh", loc.mesh)  # what the filter renders
     def on_step(k, particles, weights):
         rr.set_time("step", sequence=k)
         viz.log_pose6_particles(particles[:, :3], weights)

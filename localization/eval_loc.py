@@ -74,7 +74,8 @@ class LocResult:
 class SceneLocalizer:
     """Localises photos against the posed views of `scene` with one method.
 
-    features: SIFT features per view of `scene` (optional; extracted here when missing)."""
+    features: SIFT features per view of `scene` (optional; extracted here when missing).
+    After construction `mesh` is the model the filter renders (methods pf and hybrid)."""
 
     def __init__(self, scene: Scene, method: str, config: LocConfig = LocConfig(),
                  features: list[Features] | None = None, ctx=None):
@@ -114,7 +115,8 @@ class SceneLocalizer:
         if self.config.model == "proxy-colors":
             return BatchedLikelihood(likelihood_renderer(self.mesh, ctx), LikelihoodConfig())
         texture = PhotoTexture(self.mesh, self.scene.cameras, [v.image for v in self.scene.views], ctx=ctx)
-        renderer = likelihood_renderer(texture.textured_mesh(), ctx)
+        self.mesh = texture.textured_mesh()
+        renderer = likelihood_renderer(self.mesh, ctx)
         likelihood = BatchedLikelihood(renderer, LikelihoodConfig())
         likelihood.focus = lambda eye: texture.focus(renderer, eye)
         return likelihood
