@@ -95,6 +95,15 @@ class MeshRenderer:
             self.prog, [(self.vbo, "3f4 3f4 2f4 4f4 1f4", *self.ATTRS)], self.ibo)
         self._fbos: dict[tuple[int, int], moderngl.Framebuffer] = {}
 
+    def write_uv(self, uv: np.ndarray) -> None:
+        """Replace the texture coordinates (V, 2) of the mesh's vertices (same order as the
+        mesh, trimesh convention: v = 0 at the texture's bottom row) on the GPU."""
+        data = np.frombuffer(self.vbo.read(), "f4").reshape(-1, 13).copy()
+        if len(uv) != len(data):
+            raise ValueError(f"{len(uv)} texture coordinates for {len(data)} vertices")
+        data[:, 6:8] = uv
+        self.vbo.write(data.tobytes())
+
     def release(self) -> None:
         """Free this renderer's GL objects (buffers, texture, programs, framebuffers)."""
         if self._fbos:

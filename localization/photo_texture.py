@@ -28,7 +28,7 @@ import trimesh
 from PIL import Image
 
 from ibr.camera import Camera
-from ibr.mesh_renderer import MeshRenderer, mesh_vertex_data
+from ibr.mesh_renderer import MeshRenderer
 
 
 @dataclass(frozen=True)
@@ -160,5 +160,5 @@ class PhotoTexture:
 
     def focus(self, renderer: MeshRenderer, eye: np.ndarray) -> None:
         """Re-choose the faces' photos for views near `eye` (world metres) in a renderer of
-        `textured_mesh()`: only its vertex buffer is rewritten."""
-        renderer.vbo.write(mesh_vertex_data(self.textured_mesh(eye))[0].tobytes())
+        `textured_mesh()`: only its texture coordinates are rewritten."""
+        renderer.write_uv(self.uv(eye))

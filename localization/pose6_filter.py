@@ -135,13 +135,14 @@ def pose_covariance(particles: np.ndarray) -> np.ndarray:
     return np.cov(np.c_[particles[:, :3] - mean[:3], rot].T)
 
 
-def diffuse(particles: np.ndarray, scale: float, floor: tuple[float, float],
-            rng: np.random.Generator) -> np.ndarray:
+def diffuse(particles: np.ndarray, scale: float, floor: tuple[float, float], rng: np.random.Generator,
+            cov: np.ndarray | None = None) -> np.ndarray:
     """The annealed particle filter's random walk (Deutscher et al. 2000): Gaussian noise
-    with scale^2 x the particles' own covariance (`pose_covariance`) plus a floor
-    (metres, radians) on the diagonal."""
-    cov = scale ** 2 * pose_covariance(particles) + np.diag([floor[0] ** 2] * 3 + [floor[1] ** 2] * 3)
-    return apply_offsets(particles, rng.multivariate_normal(np.zeros(6), cov, size=len(particles)))
+    with scale^2 x the particles' own covariance (`pose_covariance`, or `cov` when the
+    caller has it) plus a floor (metres, radians) on the diagonal."""
+    cov = pose_covariance(particles) if cov is None else cov
+    noise = scale ** 2 * cov + np.diag([floor[0] ** 2] * 3 + [floor[1] ** 2] * 3)
+    return apply_offsets(particles, rng.multivariate_normal(np.zeros(6), noise, size=len(particles)))
 
 
 def sample_around(cam_from_world: np.ndarray, n: int, spread_m: float, spread_rad: float,
@@ -230,7 +231,7 @@ class Pose6Filter:
         cov = pose_covariance(particles)
         self.sigma = (c.diffusion * np.sqrt(np.trace(cov[:3, :3]) / 3) + floor[0],
                       c.diffusion * np.sqrt(np.trace(cov[3:, 3:]) / 3) + floor[1])
-        particles = diffuse(particles, c.diffusion, floor, rng)
+        particles = diffuse(particles, c.diffusion, floor, rng, cov)
         jump = rng.random(len(particles)) < c.perturb_fraction
         particles[jump] = perturb(particles[jump], *wide, rng)
         return particles

@@ -21,22 +21,23 @@ def ncc(a: np.ndarray, b: np.ndarray) -> float:
 
 
 @pytest.fixture(scope="module")
-def office_photos(gl_ctx):
+def office_texture(gl_ctx):
+    """The office's exact geometry (no colours: faces no photo textures render black),
+    textured from 9 rendered photos, and a new view 0.3 m beside photo 2's with its photo."""
     world = make_world("office", 0)
     cams = world.default_cameras(9, 320, 240)
-    return world, cams, [world.photograph(c, gl_ctx) for c in cams]
-
-
-def test_exact_geometry_textured_from_photos_reproduces_a_held_out_photo(office_photos, gl_ctx):
-    world, cams, photos = office_photos
+    photos = [world.photograph(c, gl_ctx) for c in cams]
     plain = trimesh.Trimesh(*trimesh.remesh.subdivide_to_size(world.mesh.vertices, world.mesh.faces, 0.3),
                             process=False)
-    plain.visual.vertex_colors = [0, 0, 0, 255]  # faces no photo textures render black
+    plain.visual.vertex_colors = [0, 0, 0, 255]
     texture = PhotoTexture(plain, cams, photos, PhotoTextureConfig(cell_width=320), gl_ctx)
-    # a new viewpoint 0.3 m beside photo 2's, looking at the same spot
     target = cams[2].center + 3.0 * cams[2].forward
     held = Camera.look_at(cams[2].center + [0.2, -0.2, 0.1], target, cams[2].K, 320, 240)
-    photo = world.photograph(held, gl_ctx)
+    return world, plain, texture, held, world.photograph(held, gl_ctx)
+
+
+def test_exact_geometry_textured_from_photos_reproduces_a_new_view(office_texture, gl_ctx):
+    world, plain, texture, held, photo = office_texture
     g = MeshRenderer(texture.textured_mesh(held.center), gl_ctx).render(held)
     seen = g.mask & (g.color.sum(axis=2) > 0)
     assert seen.mean() > 0.6
@@ -46,6 +47,21 @@ def test_exact_geometry_textured_from_photos_reproduces_a_held_out_photo(office_
     # ... and far better than the untextured geometry's flat shading
     flat = MeshRenderer(trimesh.Trimesh(plain.vertices, plain.faces), gl_ctx).render(held, world.light)
     assert ncc(luminance(flat.color, (held.width, held.height))[seen], truth) < 0.6
+
+
+def test_focus_rewrites_only_the_texture_coordinates(office_texture, gl_ctx):
+    """Re-focusing a renderer of the best-view texture on an eye draws exactly what a
+    renderer built from the eye's texture draws."""
+    world, plain, _, held, photo = office_texture
+    target = held.center + 3.0 * held.forward
+    beside = Camera.look_at(held.center + [0.6, 0.4, 0.0], target, held.K, 320, 240)
+    texture = PhotoTexture(plain, [held, beside], [photo, world.photograph(beside, gl_ctx)],
+                           PhotoTextureConfig(cell_width=320), gl_ctx)
+    assert (texture.uv(beside.center) != texture.uv(held.center)).any()  # the eye changes the choice
+    renderer = MeshRenderer(texture.textured_mesh(held.center), gl_ctx)
+    texture.focus(renderer, beside.center)
+    expected = MeshRenderer(texture.textured_mesh(beside.center), gl_ctx).render(held).color
+    np.testing.assert_array_equal(renderer.render(held).color, expected)
 
 
 def test_faces_behind_an_occluder_are_not_textured_from_that_photo(gl_ctx):
