@@ -84,31 +84,38 @@ class StopAfter(MissionObserver):
             raise Stop
 
 
-def test_random_stage_resumes_to_the_records_and_photos_of_an_uninterrupted_run(tmp_path, office):
+def random_stage_into(folder: Path, robot: SimRobot, stop_after: int, replayable: bool) -> tuple | None:
+    """The random stage (30 photos from the office start) into the capture session at
+    `folder`, each photo written as taken; stopped after `stop_after` observer calls (0:
+    never). Returns `_random_stage`'s (photos, body), or None when it was stopped."""
     start = np.array([-1.5, -2.5, 0.0])
     cfg = RandomExplorationConfig(circle_step_rad=np.radians(30))
+    with CaptureSession.open_or_create(folder, robot.intrinsics, robot.image_size, robot.cam_from_robot,
+                                       rollback=True) as s:
 
-    def run(folder, stop_after=None):
-        robot = SimRobot(office, SimRobotConfig(image_size=(32, 24)), np.random.default_rng(4),
-                         start_pose=tuple(start))
-        with CaptureSession.open_or_create(folder, robot.intrinsics, robot.image_size, robot.cam_from_robot,
-                                           rollback=True) as s:
+        class Write(StopAfter):
+            def photo(self, mp):
+                s.add_photo(mp.photo, pose=mp.estimate, stage=mp.stage)
 
-            class Write(StopAfter):
-                def photo(self, mp):
-                    s.add_photo(mp.photo, pose=mp.estimate, stage=mp.stage)
+        try:
+            return _random_stage(robot, start, 30, cfg, np.random.default_rng(9), Write(stop_after),
+                                 SessionJournal(s, robot, replayable=replayable))
+        except Stop:
+            return None
 
-            try:
-                _random_stage(robot, start, 30, cfg, np.random.default_rng(9), Write(stop_after or 0),
-                              SessionJournal(s, robot, replayable=True))
-            except Stop:
-                pass
-        return robot
 
-    a = run(tmp_path / "a")
-    run(tmp_path / "b", stop_after=17)  # stopped inside photo 16's records (before its commit)
+def office_robot(office) -> SimRobot:
+    return SimRobot(office, SimRobotConfig(image_size=(32, 24)), np.random.default_rng(4), start_pose=(-1.5, -2.5, 0.0))
+
+
+def test_random_stage_resumes_to_the_records_and_photos_of_an_uninterrupted_run(tmp_path, office):
+    a = office_robot(office)
+    random_stage_into(tmp_path / "a", a, 0, replayable=True)
+    # stopped inside photo 16's records (before its commit)
+    random_stage_into(tmp_path / "b", office_robot(office), 17, replayable=True)
     assert len(CaptureSession.open(tmp_path / "b", rollback=True).photos) == 16
-    b = run(tmp_path / "b")
+    b = office_robot(office)
+    random_stage_into(tmp_path / "b", b, 0, replayable=True)
     assert (tmp_path / "a" / "log.jsonl").read_bytes() == (tmp_path / "b" / "log.jsonl").read_bytes()
     for p in (tmp_path / "a" / "photos").iterdir():
         assert p.read_bytes() == (tmp_path / "b" / "photos" / p.name).read_bytes()
@@ -118,23 +125,10 @@ def test_random_stage_resumes_to_the_records_and_photos_of_an_uninterrupted_run(
 
 def test_a_real_robot_takes_the_remaining_random_photos_from_where_it_is(tmp_path, office):
     """No replay without a simulator: the stage goes on from the last logged estimate."""
-    start = np.array([-1.5, -2.5, 0.0])
-    cfg = RandomExplorationConfig(circle_step_rad=np.radians(30))
-    robot = SimRobot(office, SimRobotConfig(image_size=(32, 24)), np.random.default_rng(4), start_pose=tuple(start))
+    robot = office_robot(office)
     folder = tmp_path / "real"
-    for stop_after in (17, 0):
-        with CaptureSession.open_or_create(folder, robot.intrinsics, robot.image_size, robot.cam_from_robot,
-                                           rollback=True) as s:
-
-            class Write(StopAfter):
-                def photo(self, mp):
-                    s.add_photo(mp.photo, pose=mp.estimate, stage=mp.stage)
-
-            try:
-                photos, body = _random_stage(robot, start, 30, cfg, np.random.default_rng(9), Write(stop_after),
-                                             SessionJournal(s, robot, replayable=False))
-            except Stop:
-                continue
+    assert random_stage_into(folder, robot, 17, replayable=False) is None
+    photos, body = random_stage_into(folder, robot, 0, replayable=False)
     records = CaptureSession.open(folder).records
     assert len(photos) == 30 and [r["index"] for r in records if r["kind"] == "photo"] == list(range(30))
     assert [r["kind"] for r in records] == ["photo", "commit"] * 30
