@@ -1,2 +1,4 @@
-"""explore: deciding where to go — candidate views and their scores, grids and A*,
-VuePlan view planning, roadmaps and tours, voxel maps, the scenic route planner."""
+"""explore: deciding where to go. What the planners share lives here (candidate views and
+the rendering-quality heuristic, floor plans, the navigation grid, A* and path
+simplification); each seed system's planner is a sub-package: `explore.vueplan` (VuePlan,
+Blaer & Allen) and `explore.scenic` (the Scenic Route Planner)."""

@@ -1,4 +1,5 @@
-"""`ibrnav bench` figures for the scene-capture mission (Foster, Wang & Grupen, Sec. IV-B).
+"""`ibrnav bench` figures of explore's shared planners: the rendering-quality heuristic
+(`explore.view_quality`, Foster, Wang & Grupen Sec. IV-B) and A* on the navigation grid.
 
 heuristic_evals_per_s_100src_64x48, heuristic_evals_per_s_100src_160x120: candidate
     views scored per second by the rendering-quality heuristic (`ViewQuality.score_views`:

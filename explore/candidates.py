@@ -16,7 +16,7 @@ import numpy as np
 import shapely
 import trimesh
 
-from explore.floorplan import FloorPlanError, _as_free_space
+from explore.floorplan import FloorPlanError, as_free_space
 from ibr.errors import InputError
 
 
@@ -89,7 +89,7 @@ def free_space_from_mesh(mesh: trimesh.Trimesh, plane_z: float, inside_xy: np.nd
     cameras, would make the room itself the obstacle.)"""
     geom, _ = free_space_from_slice(slice_segments(mesh, plane_z), inside_xy, config)
     try:
-        return _as_free_space(geom, f"mesh slice at z = {plane_z:g} m")
+        return as_free_space(geom, f"mesh slice at z = {plane_z:g} m")
     except FloorPlanError as e:
         raise InputError(str(e)) from None
 

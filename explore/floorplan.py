@@ -66,7 +66,9 @@ class FloorPlan:
         return segs[wall]
 
 
-def _as_free_space(geom: shapely.Geometry, source: str) -> shapely.Polygon | shapely.MultiPolygon:
+def as_free_space(geom: shapely.Geometry, source: str) -> shapely.Polygon | shapely.MultiPolygon:
+    """`geom` made a valid 2-D (multi)polygon of free space; FloorPlanError naming `source`
+    when nothing of area is left."""
     geom = shapely.make_valid(shapely.force_2d(geom))
     if isinstance(geom, shapely.GeometryCollection) and not isinstance(geom, shapely.MultiPolygon):
         polys = [g for g in geom.geoms if isinstance(g, (shapely.Polygon, shapely.MultiPolygon))]
@@ -82,7 +84,7 @@ def load_wkt(path: str | Path, exterior_is_wall: bool = False) -> FloorPlan:
         geom = shapely.from_wkt(Path(path).read_text().strip())
     except (OSError, shapely.errors.GEOSException) as e:
         raise FloorPlanError(f"{path}: cannot read a WKT polygon ({e})") from e
-    return FloorPlan(_as_free_space(geom, str(path)), exterior_is_wall)
+    return FloorPlan(as_free_space(geom, str(path)), exterior_is_wall)
 
 
 def load_geojson(path: str | Path, exterior_is_wall: bool = False) -> FloorPlan:
@@ -102,7 +104,7 @@ def load_geojson(path: str | Path, exterior_is_wall: bool = False) -> FloorPlan:
             raise FloorPlanError(f"{path}: not a GeoJSON geometry ({e})") from e
     if not shapes:
         raise FloorPlanError(f"{path}: no GeoJSON geometry found")
-    return FloorPlan(_as_free_space(shapely.union_all(shapes), str(path)), exterior_is_wall)
+    return FloorPlan(as_free_space(shapely.union_all(shapes), str(path)), exterior_is_wall)
 
 
 def load_floor_plan(path: str | Path, exterior_is_wall: bool = False) -> FloorPlan:
@@ -130,4 +132,4 @@ def floor_plan_from_mesh(mesh: trimesh.Trimesh, height_m: float = 0.5,
     planar, _ = section.to_2D(to_2D=np.eye(4))  # identity: keep world x, y
     obstacles = [p for p in planar.polygons_full if p.area > 1e-6]
     free = site.difference(shapely.union_all(obstacles)) if obstacles else site
-    return FloorPlan(_as_free_space(free, "mesh slice"), exterior_is_wall=False)
+    return FloorPlan(as_free_space(free, "mesh slice"), exterior_is_wall=False)

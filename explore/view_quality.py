@@ -163,13 +163,10 @@ class ViewQuality:
 
     def release(self) -> None:
         """Free this scorer's GL objects (a mission builds a new one per map)."""
-        r = self.renderer
         (self.ctx.screen or self.ctx.detect_framebuffer(0)).use()  # never free the bound one
-        attachments = [a for f in r._fbos.values() for a in (*f.color_attachments, f.depth_attachment)]
-        for obj in (self._depth_tex, self._source_buf, self.program, r.vao, r.vbo, r.ibo, r.texture,
-                    r.prog, r.prog_batched, *r._fbos.values(), *attachments):
+        for obj in (self._depth_tex, self._source_buf, self.program):
             obj.release()
-        r._fbos.clear()
+        self.renderer.release()
 
     # --- scoring ----------------------------------------------------------------------
     def view_stats(self, clip_from_world: np.ndarray, eyes: np.ndarray) -> np.ndarray:

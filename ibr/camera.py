@@ -1,10 +1,11 @@
 """The one camera type of ibrnav: pinhole intrinsics K, image size and `cam_from_world`.
 
-Conventions (DESIGN.md): camera axes are OpenCV's (x right, y down, z forward); pixel
+Conventions (docs/ARCHITECTURE.md): camera axes are OpenCV's (x right, y down, z forward); pixel
 (u, v) = (0, 0) is the *centre* of the top-left pixel; metres and radians. Every function
 about views takes `Camera` objects. Conversions live here, each in one place:
-from pycolmap, from/to Strecha `.camera` files, to OpenGL (`gl_projection`, the only
-code that knows GL's clip-space conventions) and, through `ibr.viz`, to rerun.
+from pycolmap, from/to Strecha `.camera` files and to OpenGL (`gl_projection`, the only
+code that knows GL's clip-space conventions). The conversion to rerun is `ibr.viz.camera_archetypes`
+(algorithm code does not import rerun).
 """
 
 from __future__ import annotations
@@ -216,13 +217,6 @@ class Camera:
         """4x4 world -> clip matrix (`gl_projection @ cam_from_world`), row-major float64.
         Upload to GLSL as `.T.astype('f4')` (GLSL is column-major)."""
         return self.gl_projection(near, far) @ self.cam_from_world
-
-    # --- rerun --------------------------------------------------------------------
-    def to_rerun(self):
-        """(rr.Pinhole, rr.Transform3D) of this camera; see `ibr.viz.camera_archetypes`."""
-        from ibr.viz import camera_archetypes
-
-        return camera_archetypes(self)
 
     def __repr__(self) -> str:
         c = np.array2string(self.center, precision=3)

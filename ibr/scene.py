@@ -1,8 +1,9 @@
 """`Scene`: posed images (+ optional proxy mesh and points), and `load_scene(spec)`.
 
 A spec is a path (a Strecha-format folder or a COLMAP model folder) or
-`synthetic:NAME[?seed=N&views=N&width=W&height=H]`. Every bad input raises one
-`SceneError` that names the offending file. Nothing downstream knows a file format.
+`synthetic:NAME[?seed=N&views=N&width=W&height=H]`; `parse_scene_spec` is the one reader of
+that text, for every command. Every bad input raises one `SceneError` that names the
+offending file or spec. Nothing downstream knows a file format.
 """
 
 from __future__ import annotations
@@ -179,36 +180,73 @@ def load_colmap(folder: str | Path, image_dir: str | Path | None = None) -> Scen
     return Scene(folder.name, views, points=xyz, point_colors=rgb, root=folder)
 
 
-def load_synthetic(spec: str) -> Scene:
-    """`synthetic:NAME[?seed=N&views=N&width=W&height=H]`: photos of a synthetic world
-    from its default cameras; the ground-truth mesh is the scene's mesh."""
-    from ibr.synthetic import WORLDS, make_world
+SYNTHETIC_PARAMS = ("seed", "views", "width", "height")
 
-    body = spec.split(":", 1)[1]
-    name, _, query = body.partition("?")
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """A parsed SCENE argument. `world`: the synthetic world's name (None for a path);
+    `params`: its integer query parameters (a subset of SYNTHETIC_PARAMS); `path`: the
+    folder of a real scene (None for a synthetic one); `text`: the spec as given."""
+
+    text: str
+    world: str | None = None
+    params: dict = field(default_factory=dict)
+    path: Path | None = None
+
+    def seed(self, default: int = 0) -> int:
+        """The world seed: `?seed=N` when the spec gives one, else `default`."""
+        return self.params.get("seed", default)
+
+
+def parse_scene_spec(spec: str | Path, synthetic_only: bool = False,
+                     allowed: tuple[str, ...] = SYNTHETIC_PARAMS) -> SceneSpec:
+    """Read SCENE: `synthetic:NAME[?seed=N&views=N&width=W&height=H]` or a scene folder's
+    path. `synthetic_only`: a path is an error (the command needs a world it can simulate);
+    `allowed`: the query parameters the caller uses (others are an error, not silently
+    ignored). Raises SceneError naming the spec; checks only the text, not the folder."""
+    from ibr.synthetic import WORLDS
+
+    s = str(spec)
+    if not s.startswith("synthetic:"):
+        if synthetic_only:
+            raise SceneError(f"{s}: this command needs a synthetic world, synthetic:NAME[?seed=N] with NAME "
+                             f"in {sorted(WORLDS)}")
+        return SceneSpec(s, path=Path(s))
+    name, _, query = s.split(":", 1)[1].partition("?")
     try:
         params = {k: int(v) for k, v in parse_qsl(query, strict_parsing=bool(query))}
     except ValueError:
-        raise SceneError(f"{spec}: bad query; expected e.g. synthetic:office?seed=1&views=24") from None
-    unknown = set(params) - {"seed", "views", "width", "height"}
+        raise SceneError(f"{s}: bad query; expected integers, e.g. synthetic:office?seed=1") from None
+    unknown = set(params) - set(allowed)
     if unknown or name not in WORLDS:
-        raise SceneError(f"{spec}: expected synthetic:NAME[?seed=N&views=N&width=W&height=H] "
-                         f"with NAME in {sorted(WORLDS)}")
-    world = make_world(name, params.get("seed", 0))
+        query_help = "&".join(f"{k}=N" for k in allowed)
+        raise SceneError(f"{s}: expected synthetic:NAME[?{query_help}] with NAME in {sorted(WORLDS)}")
+    return SceneSpec(s, world=name, params=params)
+
+
+def load_synthetic(spec: str | SceneSpec) -> Scene:
+    """`synthetic:NAME[?seed=N&views=N&width=W&height=H]`: photos of a synthetic world
+    from its default cameras; the ground-truth mesh is the scene's mesh."""
+    from ibr.synthetic import make_world
+
+    spec = spec if isinstance(spec, SceneSpec) else parse_scene_spec(spec, synthetic_only=True)
+    params = spec.params
+    world = make_world(spec.world, spec.seed())
     cams = world.default_cameras(params.get("views", 24), params.get("width", 640),
                                  params.get("height", 480))
     views = [View(c, world.photograph(c)) for c in cams]
-    return Scene(f"synthetic:{name}", views, mesh=world.mesh, world=world,
+    return Scene(f"synthetic:{spec.world}", views, mesh=world.mesh, world=world,
                  meta={"seed": world.seed})
 
 
 def load_scene(spec: str | Path) -> Scene:
     """Load a scene from a path (Strecha folder or COLMAP model folder) or a
     `synthetic:NAME[?seed=N]` spec. Raises SceneError naming the bad input."""
-    s = str(spec)
-    if s.startswith("synthetic:"):
-        return load_synthetic(s)
-    path = Path(s)
+    parsed = parse_scene_spec(spec)
+    if parsed.world is not None:
+        return load_synthetic(parsed)
+    path = parsed.path
     if not path.exists():
         raise SceneError(f"{path}: no such scene folder (or use synthetic:office)")
     if (path / "cameras").is_dir() and (path / "images").is_dir():

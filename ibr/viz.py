@@ -1,20 +1,16 @@
-"""Rerun logging for ibr: cameras, images, meshes, points, whole scenes; and the rerun
-command-line plumbing every `ibrnav` subcommand shares. Entity paths follow DESIGN.md:
-`world/cameras/<name>`, `world/map/mesh`, `world/map/points`."""
+"""Rerun logging for ibr: cameras, images, meshes, points, whole scenes. Entity paths follow
+docs/ARCHITECTURE.md: `world/cameras/<name>`, `world/map/mesh`, `world/map/points`. (The
+rerun command-line set-up every `ibrnav` command shares is `ibrnav.recording`.)"""
 
 from __future__ import annotations
 
-import argparse
 import re
-import sys
 
 import numpy as np
 import rerun as rr
 import trimesh
 
 from ibr.camera import Camera
-
-SINK_FLAGS = ("save", "connect", "serve", "stdout", "headless", "serve_web", "serve_grpc")
 
 
 def camera_archetypes(camera: Camera) -> tuple[rr.Pinhole, rr.Transform3D]:
@@ -77,28 +73,3 @@ def log_scene(scene, max_image_side: int = 640) -> None:
         log_mesh("world/map/mesh", scene.mesh)
     if scene.points is not None and len(scene.points):
         log_points("world/map/points", scene.points, scene.point_colors)
-
-
-# --- command-line plumbing shared by every subcommand ------------------------------
-def add_rerun_args(parser: argparse.ArgumentParser) -> None:
-    """rerun's standard --save/--connect/--headless/... flags."""
-    rr.script_add_args(parser)
-
-
-def rerun_setup(args: argparse.Namespace, app_id: str, default_save: str | None) -> None:
-    """Start recording. With no sink flag given (and no viewer on a headless machine to
-    spawn), record to `default_save` so a first run always leaves a file to open."""
-    if default_save and not any(getattr(args, f, None) for f in SINK_FLAGS):
-        args.save = default_save
-    rr.script_setup(args, app_id)
-    rr.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-    if getattr(args, "save", None):
-        print(f"recording to {args.save} (open it with: rerun {args.save})", file=sys.stderr)
-
-
-def rerun_teardown(args: argparse.Namespace) -> None:
-    """End the recording: rerun's own teardown, then flush and close the sinks, so a
-    `.rrd` is complete (footer included) when the command returns, also when the command
-    ran in-process (a notebook, a test) rather than as its own process."""
-    rr.script_teardown(args)
-    rr.disconnect()

@@ -1,51 +1,57 @@
-"""`ibrnav bench`: the one place benchmarks run. Each package lists its figures in a
-`bench*.py` module as `FIGURES = {name: function}`; a function returns
-`{"value": v, "unit": u, "baseline": b, "ratio": r}` measured against a naive baseline
-in the same run. Output: `{"figures": {NAME: {...}, ...}}`."""
+"""The one place benchmarks run. Each package and sub-package that has speed figures keeps
+them in its `bench.py` as `FIGURES = {name: function}`; a function returns
+`{"value": v, "unit": u, "baseline": b, "ratio": r}` measured against a naive baseline in
+the same run (and may add keys of its own). `all_figures` gathers every `bench.py` of the
+four library packages; `run_figures` runs some and returns `{"figures": {NAME: {...}}}`.
+Progress goes to the log (stderr), never to stdout, which carries the JSON."""
 
 from __future__ import annotations
 
-import argparse
 import importlib
-import json
-import sys
+import importlib.util
+import logging
 import time
 from pathlib import Path
 
-FIGURE_MODULES = ["ibr.bench", "ibr.bench_ulr", "explore.bench_vueplan", "explore.scenic_bench", "explore.bench_mission", "localization.bench", "localization.bench_pnp"]
+PACKAGES = ("ibr", "localization", "explore", "robot")
+log = logging.getLogger(__name__)
+
+
+def bench_modules() -> list[str]:
+    """Dotted names of every `bench.py` module in the library packages (sorted)."""
+    names = []
+    for pkg in PACKAGES:
+        root = Path(importlib.util.find_spec(pkg).origin).parent
+        for path in sorted(root.rglob("bench.py")):
+            rel = path.relative_to(root.parent).with_suffix("")
+            names.append(".".join(rel.parts))
+    return names
 
 
 def all_figures() -> dict:
     figures = {}
-    for name in FIGURE_MODULES:
+    for name in bench_modules():
         figures.update(importlib.import_module(name).FIGURES)
     return figures
 
 
-def run(args: argparse.Namespace) -> int:
+class UnknownFigureError(KeyError):
+    """Figure names that no bench.py defines."""
+
+
+def run_figures(names: list[str] | None = None) -> dict:
+    """Run the named figures (default: all), in order; `{"figures": {NAME: {...}}}`."""
     figures = all_figures()
-    names = args.only or list(figures)
+    names = names or list(figures)
     unknown = [n for n in names if n not in figures]
     if unknown:
-        print(f"unknown figure(s) {unknown}; known: {sorted(figures)}", file=sys.stderr)
-        return 2
+        raise UnknownFigureError(f"unknown figure(s) {unknown}; known: {sorted(figures)}")
     out = {"figures": {}}
     for n in names:
         t = time.perf_counter()
-        print(f"[bench] {n} ...", file=sys.stderr, flush=True)
+        log.info(f"{n} ...")
         fig = figures[n]()
         out["figures"][n] = fig
-        print(f"[bench] {n}: {fig['value']:.4g} {fig['unit']} (baseline {fig['baseline']:.4g}, "
-              f"ratio {fig['ratio']:.3g}x) in {time.perf_counter() - t:.1f} s", file=sys.stderr)
-    text = json.dumps(out, indent=2)
-    if args.json:
-        Path(args.json).write_text(text + "\n")
-    print(text)
-    return 0
-
-
-def register(subparsers) -> None:
-    p = subparsers.add_parser("bench", help="run the speed figures (JSON out)")
-    p.add_argument("--json", help="write the figures to this file")
-    p.add_argument("--only", action="append", metavar="NAME", help="run only this figure (repeatable)")
-    p.set_defaults(func=run)
+        log.info(f"{n}: {fig['value']:.4g} {fig['unit']} (baseline {fig['baseline']:.4g}, "
+                 f"ratio {fig['ratio']:.3g}x) in {time.perf_counter() - t:.1f} s")
+    return out

@@ -6,7 +6,7 @@ found by RANSAC (DLT) and then refined (f, R, T), about 2 in / 1 degree accurate
 
 Here the map comes from posed photos (`ibr.scene.Scene`): SIFT per image, matched between
 neighbouring views, kept when consistent with the epipolar geometry of the *known* poses and
-triangulated (`ibr.triangulation`). Every triangulated point keeps the descriptors of both
+triangulated (`ibr.proxy.triangulation`). Every triangulated point keeps the descriptors of both
 features it came from, and all descriptors go into one FLANN KD-tree index built once.
 A query's descriptors are matched with a ratio test whose second neighbour must belong to a
 *different* 3-D point (more than `FeatureLocalizerConfig.same_point_m` away), then pycolmap's
@@ -28,7 +28,7 @@ from scipy.spatial.transform import Rotation
 
 from ibr.camera import Camera, rigid
 from ibr.scene import Scene
-from ibr.triangulation import (Features, TriangulationConfig, neighbour_pairs, pair_tracks,
+from ibr.proxy.triangulation import (Features, TriangulationConfig, neighbour_pairs, pair_tracks,
                                sift_features)
 
 

@@ -1,5 +1,6 @@
 """A lean copy of a proxy mesh for the particle likelihood: llvmpipe's cost grows with
-triangles (issue 4: "use a lean proxy (decimated mesh) for this pass").
+triangles, and the likelihood needs the proxy's shape, not its detail, so this pass renders a
+decimated copy.
 
 Quadric edge-collapse decimation (Garland & Heckbert 1997, through `fast_simplification`);
 each kept vertex takes the colour of the nearest vertex of the original mesh, so the lean

@@ -69,7 +69,7 @@ class ParticleFilterConfig:
 
 
 @contextmanager
-def _numpy_random_from(rng: np.random.Generator):
+def numpy_random_from(rng: np.random.Generator):
     """filterpy draws from numpy's global RNG: seed it from `rng` and restore it after,
     so a run is reproducible from its Generator and nothing else is disturbed."""
     state = np.random.get_state()
@@ -206,7 +206,7 @@ class ParticleFilter:
         w = np.exp(self.log_w - self.log_w.max())
         w /= w.sum()
         resample = systematic_resample if c.resampler == "systematic" else stratified_resample
-        with _numpy_random_from(self.rng):
+        with numpy_random_from(self.rng):
             idx = resample(w)
         kept = self.particles[idx]
         n_new = int(np.clip(kld_sample_count(self._occupied_bins(kept), c.kld_epsilon, c.kld_quantile),

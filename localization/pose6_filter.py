@@ -14,7 +14,7 @@ default), and the model may re-focus on the current estimate at each finer size.
 
 Particles are (N, 6): camera centre (world, metres) and the rotation vector (radians) of
 `world_from_cam`'s rotation. The model is a `BatchedLikelihood` over a mesh (for photos:
-the proxy of `ibr.proxy_geometry.build_proxy` textured from the photos,
+the proxy of `ibr.proxy.proxy_geometry.build_proxy` textured from the photos,
 `localization.photo_texture`, rendered unlit).
 """
 
@@ -28,7 +28,7 @@ from filterpy.monte_carlo import systematic_resample
 from scipy.spatial.transform import Rotation
 
 from ibr.camera import Camera, rigid
-from localization.particle_filter import _numpy_random_from
+from localization.particle_filter import numpy_random_from
 from localization.render_likelihood import BatchedLikelihood
 
 
@@ -279,7 +279,7 @@ class Pose6Filter:
             if on_step:
                 on_step(k, particles, w)
             if k < c.steps - 1:
-                with _numpy_random_from(rng):
+                with numpy_random_from(rng):
                     particles = particles[systematic_resample(w)]
                 if len(particles) > c.n_particles:  # the wide first sample, thinned
                     particles = particles[rng.choice(len(particles), c.n_particles, replace=False)]

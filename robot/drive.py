@@ -1,11 +1,11 @@
-"""A capture mission that can be killed at any moment and resumed: drive a route leg by
-leg (`robot.waypoint_follower`), take a photo after every leg, and write each leg's
+"""The `drive` loop: a robot drives a route and photographs it, killable at any moment and
+resumable. It drives leg by leg (`robot.waypoint_follower`), take a photo after every leg, and write each leg's
 motion, readings, photo and pose estimate to a capture session (`robot.session`), ending
 the leg with a commit record that holds everything resuming needs.
 
 Determinism on resume: every leg's random numbers come from generators seeded with
 (seed, leg), not from one stream, and a simulated robot's state (true pose, odometry,
-clock, photo counter) is saved in each commit and restored from the last one; so a run
+clock, photo counter: `SimRobot.state()`) is saved in each commit and restored from the last one; so a run
 killed and resumed writes the same records and photos as one left alone. A real robot
 resumes from where it physically is, with the logged pose estimate.
 Poses: world SE(2) (x, y, theta), metres and radians.
@@ -26,27 +26,12 @@ FOLLOWER_STREAM, ROBOT_STREAM = 1, 2  # sub-streams of the per-leg seed
 
 
 @dataclass(frozen=True)
-class MissionLeg:
+class DriveLeg:
     """One finished, committed leg: the follower's `Leg` and the photo taken after it."""
 
     leg: Leg
     photo: Photo
     resumed: bool  # the first leg after a resume
-
-
-def sim_state(robot) -> dict:
-    """The state of a `SimRobot` that its next moves depend on (ground truth included:
-    it is the simulator's state, kept in the commit only to resume the simulation)."""
-    return {"true_pose": robot.true_pose, "odometry": robot._odometry, "time_s": robot.time_s,
-            "contact": list(robot._contact), "n_photos": robot._n_photos}
-
-
-def restore_sim_state(robot, state: dict) -> None:
-    robot.true_pose = np.asarray(state["true_pose"], dtype=np.float64)
-    robot._odometry = np.asarray(state["odometry"], dtype=np.float64)
-    robot.time_s = float(state["time_s"])
-    robot._contact = tuple(state["contact"])
-    robot._n_photos = int(state["n_photos"])
 
 
 def _reseed(rng: np.random.Generator, seed: int, stream: int, leg: int) -> None:
@@ -58,9 +43,9 @@ def _motion(m: MotionResult) -> dict:
             "bumper_rear": m.bumper_rear, "stalled": m.stalled}
 
 
-def run_capture_mission(robot: Robot, session: CaptureSession, waypoints: np.ndarray,
+def run_drive(robot: Robot, session: CaptureSession, waypoints: np.ndarray,
                         start_pose: np.ndarray, seed: int, config: FollowerConfig = FollowerConfig(),
-                        is_sim: bool | None = None) -> Iterator[MissionLeg]:
+                        is_sim: bool | None = None) -> Iterator[DriveLeg]:
     """Drive `robot` through `waypoints` (M, 2) from `start_pose` (3,), logging to
     `session` (opened with rollback=True when resuming); yields each committed leg.
     Resumes after the session's last commit. `is_sim`: restore the simulator state from
@@ -72,7 +57,7 @@ def run_capture_mission(robot: Robot, session: CaptureSession, waypoints: np.nda
         done, w0 = last["step"] + 1, last["state"]["waypoint"]
         est = np.asarray(last["state"]["estimate"], dtype=np.float64)
         if is_sim:
-            restore_sim_state(robot, last["state"]["sim"])
+            robot.restore(last["state"]["sim"])
     else:
         session.append("start", start_pose=est, seed=seed, waypoints=waypoints)
     follower_rng = np.random.default_rng(0)
@@ -95,7 +80,7 @@ def run_capture_mission(robot: Robot, session: CaptureSession, waypoints: np.nda
         session.append("estimate", step=k, pose=leg.estimate)
         state = {"waypoint": leg.waypoint, "estimate": leg.estimate}
         if is_sim:
-            state["sim"] = sim_state(robot)
+            state["sim"] = robot.state()
         session.commit(k, state)
-        yield MissionLeg(leg, photo, resumed=k == done and done > 0)
+        yield DriveLeg(leg, photo, resumed=k == done and done > 0)
         k += 1

@@ -53,7 +53,8 @@ def _jsonable(x):
     return x
 
 
-def _fsync_dir(path: Path) -> None:
+def fsync_dir(path: Path) -> None:
+    """Make a rename or a new file in folder `path` durable (fsync the folder itself)."""
     fd = os.open(path, os.O_RDONLY)
     try:
         os.fsync(fd)
@@ -61,14 +62,15 @@ def _fsync_dir(path: Path) -> None:
         os.close(fd)
 
 
-def _write_atomic(path: Path, data: bytes) -> None:
+def write_atomic(path: Path, data: bytes) -> None:
+    """Write `data` to `path` all or nothing: a temp file, fsynced, renamed over `path`."""
     tmp = path.with_name(f".{path.name}.tmp")
     with open(tmp, "wb") as f:
         f.write(data)
         f.flush()
         os.fsync(f.fileno())
     os.replace(tmp, path)
-    _fsync_dir(path.parent)
+    fsync_dir(path.parent)
 
 
 class CaptureSession:
@@ -96,7 +98,7 @@ class CaptureSession:
         (folder / PHOTOS).mkdir(parents=True, exist_ok=True)
         info = {"version": 1, "intrinsics": intrinsics, "image_size": list(image_size),
                 "cam_from_robot": cam_from_robot, "meta": meta or {}}
-        _write_atomic(folder / META, json.dumps(_jsonable(info), indent=1).encode())
+        write_atomic(folder / META, json.dumps(_jsonable(info), indent=1).encode())
         return cls(folder, json.loads((folder / META).read_text()), [], {})
 
     @classmethod
@@ -117,7 +119,7 @@ class CaptureSession:
             if keep < len(records):
                 recovery["rolled_back"] = len(records) - keep
                 records = records[:keep]
-                _write_atomic(folder / LOG, b"".join(_line(r) for r in records))
+                write_atomic(folder / LOG, b"".join(_line(r) for r in records))
         recovery.update(_reconcile_photos(folder, records))
         return cls(folder, meta, records, recovery)
 
@@ -192,7 +194,7 @@ class CaptureSession:
         if self._dies_at("image"):
             os.kill(os.getpid(), signal.SIGKILL)
         os.replace(tmp, path)
-        _fsync_dir(path.parent)
+        fsync_dir(path.parent)
         if self._dies_at("photo"):
             os.kill(os.getpid(), signal.SIGKILL)
 
@@ -268,7 +270,7 @@ def _reconcile_photos(folder: Path, records: list[dict]) -> dict:
     missing = sorted(f for f in logged if not (folder / f).is_file())
     if missing:
         raise SessionError(f"{folder}: logged photos are missing on disk: {', '.join(missing[:5])}")
-    _fsync_dir(folder / PHOTOS)
+    fsync_dir(folder / PHOTOS)
     return {k: v for k, v in (("temp_files", temps), ("orphan_photos", orphans)) if v}
 
 

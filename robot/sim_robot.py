@@ -180,3 +180,19 @@ class SimRobot:
 
     def stop(self) -> None:
         """Motors off. A simulated robot moves only inside drive/turn, so nothing runs on."""
+
+    # --- simulator state (to resume a killed run exactly) ---------------------------
+    def state(self) -> dict:
+        """The simulator state its next moves depend on (ground truth included: it is kept only
+        to resume the simulation): true pose, odometry, clock, contact, photo counter. The noise
+        generator `rng` is not included (its owner saves or reseeds it)."""
+        return {"true_pose": self.true_pose.copy(), "odometry": self._odometry.copy(), "time_s": self.time_s,
+                "contact": list(self._contact), "n_photos": self._n_photos}
+
+    def restore(self, state: dict) -> None:
+        """Put the simulator back to a `state()` (e.g. read back from JSON)."""
+        self.true_pose = np.asarray(state["true_pose"], dtype=np.float64)
+        self._odometry = np.asarray(state["odometry"], dtype=np.float64)
+        self.time_s = float(state["time_s"])
+        self._contact = tuple(state["contact"])
+        self._n_photos = int(state["n_photos"])

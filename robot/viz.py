@@ -1,5 +1,6 @@
 """Rerun logging for robots: `world/robot` (the true pose of a simulated robot, or the
-best pose a real one has), `world/robot/camera` (mount + Pinhole + photo) and sensor plots."""
+best pose a real one has), `world/robot/camera` (mount + Pinhole + photo) and sensor plots.
+(What only the capture mission logs is `robot.mission.viz`.)"""
 
 from __future__ import annotations
 
@@ -37,30 +38,8 @@ def log_sensors(photo: Photo) -> None:
     rr.log("plots/compass_deg", rr.Scalars(np.degrees(photo.compass_rad)))
 
 
-def log_posed_photo(camera: Camera, path_root: str = "world/cameras") -> None:
-    """A photo's camera where the map put it (frustum only; the image is at world/robot/camera)."""
-    log_camera(f"{path_root}/{camera.name}", camera)
-
-
-def log_robot_map(points: np.ndarray, colors: np.ndarray, mesh) -> None:
-    """The robot's current map: `world/map/points` and `world/map/mesh` (replaced per rebuild)."""
-    from ibr.viz import log_mesh, log_points
-
-    log_points("world/map/points", points, colors, static=False)
-    log_mesh("world/map/mesh", mesh, static=False)
-
-
-def log_coverage(n_photos: int, coverage: float) -> None:
-    """plots/coverage: fraction of the true surface covered after `n_photos` photos."""
-    rr.log("plots/coverage", rr.Scalars(float(coverage)))
-    rr.log("plots/photos", rr.Scalars(float(n_photos)))
-
-
-def log_tour_frame(camera: Camera, image: np.ndarray) -> None:
-    """One frame of the virtual tour at `world/tour/camera`."""
-    log_camera("world/tour/camera", camera, image)
-
-
-def log_dead_reckoning_error(dead_reckoning: np.ndarray, truth: np.ndarray) -> None:
-    """plots/dead_reckoning_error_m: the baseline's position error, beside the filter's."""
-    rr.log("plots/dead_reckoning_error_m", rr.Scalars(float(np.hypot(*(dead_reckoning[:2] - truth[:2])))))
+def set_time(step: int, sensor_time_s: float | None = None) -> None:
+    """The timelines of what is logged next: `step` and, when given, `sensor_time` (seconds)."""
+    rr.set_time("step", sequence=step)
+    if sensor_time_s is not None:
+        rr.set_time("sensor_time", duration=sensor_time_s)

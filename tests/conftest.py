@@ -1,5 +1,6 @@
 """Shared fixtures: one headless GL context per test session (the one every renderer
-shares), checked for GL errors after each test; the real-data folder when it exists."""
+shares), checked for GL errors after each test; the real-data folder when it exists; an
+`ibrnav` command run in-process."""
 
 from __future__ import annotations
 
@@ -37,3 +38,16 @@ def office():
     from ibr.synthetic import make_world
 
     return make_world("office", 0)
+
+
+@pytest.fixture(scope="session")
+def ibrnav_command():
+    """Run one `ibrnav` command in-process as a user types it (`ibrnav_command("render", ...)`);
+    returns its exit code. An `InputError` is raised, not turned into the console script's
+    one-line message, so tests can match it."""
+    from ibrnav.cli import build_parser
+
+    def run(*argv) -> int:
+        args = build_parser().parse_args([str(a) for a in argv])
+        return args.func(args)
+    return run

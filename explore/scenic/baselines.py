@@ -14,10 +14,10 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
-from explore.scenic_map import ScenicMap
-from explore.scenic_planner import Plan, PlannerConfig
-from explore.scenic_pose import pose_distance, steer
-from explore.scenic_workspace import Workspace, positions_free, segments_free, uniform_positions
+from explore.scenic.map import ScenicMap
+from explore.scenic.planner import Plan, PlannerConfig
+from explore.scenic.pose import pose_distance, steer
+from explore.scenic.workspace import Workspace, positions_free, segments_free, uniform_positions
 
 
 @dataclass(frozen=True)

@@ -8,9 +8,9 @@ import time
 
 import numpy as np
 
-from explore.scenic_cost import NBVConfig, pose_rays, ray_costs, too_near, view_costs
-from explore.scenic_map import EMPTY, OCCUPIED
-from explore.scenic_session import ScenicSession, SessionConfig
+from explore.scenic.cost import NBVConfig, pose_rays, ray_costs, too_near, view_costs
+from explore.scenic.map import EMPTY, OCCUPIED
+from explore.scenic.session import ScenicSession, SessionConfig
 from ibr.synthetic import make_world
 
 

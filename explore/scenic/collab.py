@@ -21,9 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from explore.scenic_map import ScenicMap
-from explore.scenic_planner import Plan, PlannerConfig, grow_scenic_tree
-from explore.scenic_workspace import Workspace
+from explore.scenic.map import ScenicMap
+from explore.scenic.planner import Plan, PlannerConfig, grow_scenic_tree
+from explore.scenic.workspace import Workspace
 
 COLLABORATIVE, SFM = "collaborative", "sfm"
 

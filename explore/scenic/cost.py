@@ -26,8 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from explore.scenic_map import EMPTY, OCCUPIED, ScenicMap
-from explore.scenic_pose import CameraModel, world_from_cam_rotations
+from explore.scenic.map import EMPTY, OCCUPIED, ScenicMap
+from explore.scenic.pose import CameraModel, world_from_cam_rotations
 
 
 @dataclass(frozen=True)

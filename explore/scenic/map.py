@@ -56,6 +56,13 @@ class ScenicMap:
         shape = np.maximum(np.ceil((hi - lo) / config.voxel_m).astype(int), 1)
         return cls(config, lo, np.full(tuple(shape), UNOBSERVED, np.int8))
 
+    def cached(self, key, compute):
+        """`compute()` of this map, computed once per `key` until the map changes (every
+        update clears the cache): for quantities derived from the map by other modules."""
+        if key not in self._cache:
+            self._cache[key] = compute()
+        return self._cache[key]
+
     # --- geometry of the grid -------------------------------------------------------
     @property
     def voxel_m(self) -> float:

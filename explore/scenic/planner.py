@@ -20,10 +20,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from explore.scenic_map import ScenicMap
-from explore.scenic_pose import forward_axes, pose_distance, steer
-from explore.scenic_stereo import StereoCostConfig, stereo_cost
-from explore.scenic_workspace import Workspace, segments_free
+from explore.scenic.map import ScenicMap
+from explore.scenic.pose import forward_axes, pose_distance, steer
+from explore.scenic.stereo import StereoCostConfig, stereo_cost
+from explore.scenic.workspace import Workspace, segments_free
 
 
 @dataclass(frozen=True)

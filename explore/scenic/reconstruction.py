@@ -24,7 +24,7 @@ import cv2
 import numpy as np
 
 from ibr.camera import Camera
-from ibr.triangulation import fundamental_matrix
+from ibr.proxy.triangulation import fundamental_matrix
 
 
 @dataclass(frozen=True)

@@ -13,16 +13,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from explore.scenic_baselines import PRMConfig, RRTStarConfig, plan_prm, plan_rrt_star
-from explore.scenic_collab import COLLABORATIVE, SFM, plan_agents
-from explore.scenic_cost import NBVConfig
-from explore.scenic_map import MapConfig, ScenicMap
-from explore.scenic_metrics import GroundTruth, evaluate
-from explore.scenic_planner import Plan, PlannerConfig
-from explore.scenic_pose import CameraModel, camera_at
-from explore.scenic_reconstruction import StereoConfig, reconstruct_pair
-from explore.scenic_smc import CostSpace, SMCConfig
-from explore.scenic_workspace import Workspace
+from explore.scenic.baselines import PRMConfig, RRTStarConfig, plan_prm, plan_rrt_star
+from explore.scenic.collab import COLLABORATIVE, SFM, plan_agents
+from explore.scenic.cost import NBVConfig
+from explore.scenic.map import MapConfig, ScenicMap
+from explore.scenic.metrics import GroundTruth, evaluate
+from explore.scenic.planner import Plan, PlannerConfig
+from explore.scenic.pose import CameraModel, camera_at
+from explore.scenic.reconstruction import StereoConfig, reconstruct_pair
+from explore.scenic.smc import CostSpace, SMCConfig
+from explore.scenic.workspace import Workspace
 
 PLANNERS = ("scenic", "prm", "rrtstar")
 

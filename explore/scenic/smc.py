@@ -20,10 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from explore.scenic_cost import NBVConfig, view_costs
-from explore.scenic_map import ScenicMap
-from explore.scenic_pose import CameraModel
-from explore.scenic_workspace import Workspace, uniform_positions
+from explore.scenic.cost import NBVConfig, view_costs
+from explore.scenic.map import ScenicMap
+from explore.scenic.pose import CameraModel
+from explore.scenic.workspace import Workspace, uniform_positions
 
 
 @dataclass(frozen=True)

@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 import rerun as rr
 
-from explore.scenic_map import ScenicMap
-from explore.scenic_pose import CameraModel, camera_at
+from explore.scenic.map import ScenicMap
+from explore.scenic.pose import CameraModel, camera_at
 from ibr.viz import log_camera
 
 PATH_COLOURS = {"sfm": [160, 80, 220], "collab": [255, 200, 0], "prm": [80, 200, 255],
@@ -54,3 +54,16 @@ def log_metrics(metrics: dict) -> None:
     """Coverage, outlier ratio and mean inlier error as scalars under plots/."""
     for key, value in metrics.items():
         rr.log(f"plots/{key}", rr.Scalars(value))
+
+
+def log_report(session, report) -> None:
+    """One planning frame of a `ScenicSession`: map, particles, plans (the cheapest highlighted),
+    agents and metrics at step `report.frame`."""
+    rr.set_time("step", sequence=report.frame)
+    log_map(session.map)
+    log_particles(session.space.particles, session.space.w)
+    plans = report.plans
+    if plans:
+        log_plans(plans, min(plans, key=lambda k: plans[k].cost))
+    log_agents(session.poses, session.images, session.config.camera)
+    log_metrics(report.metrics)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from explore.scenic_map import EMPTY, OCCUPIED, ScenicMap
+from explore.scenic.map import EMPTY, OCCUPIED, ScenicMap
 
 
 @dataclass(frozen=True)
@@ -87,13 +87,12 @@ def segments_free(vmap: ScenicMap, ws: Workspace, a: np.ndarray, b: np.ndarray) 
 
 def _occupied_dilated(vmap: ScenicMap, clearance_m: float) -> np.ndarray:
     """Occupied voxels grown by clearance_m (bool grid), cached on the map until it changes."""
-    key = ("dilated", clearance_m)
-    if key not in vmap._cache:
+    def dilate():
         from scipy import ndimage
 
         occ = vmap.state == OCCUPIED
         r = int(np.ceil(clearance_m / vmap.voxel_m))
         if r > 0 and occ.any():
             occ = ndimage.binary_dilation(occ, ndimage.generate_binary_structure(3, 1), iterations=r)
-        vmap._cache[key] = occ
-    return vmap._cache[key]
+        return occ
+    return vmap.cached(("dilated", clearance_m), dilate)

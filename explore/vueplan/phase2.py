@@ -38,9 +38,9 @@ import shapely
 import trimesh
 from scipy.spatial import cKDTree
 
-from explore.voxel_grid import (EMPTY, FACE_NORMALS, OCCUPIED, UNSEEN, VoxelGrid, blocker_distance,
+from explore.vueplan.voxel_grid import (EMPTY, FACE_NORMALS, OCCUPIED, UNSEEN, VoxelGrid, blocker_distance,
                                 boundary_unseen, insert_scan, segments_clear)
-from explore.voxel_occlusion import VoxelOccluder
+from explore.vueplan.voxel_occlusion import VoxelOccluder
 
 
 @dataclass(frozen=True)
@@ -168,11 +168,11 @@ def count_visible_per_ray(grid: VoxelGrid, views: np.ndarray, cfg: Phase2Config)
                 continue
             if max(float(FACE_NORMALS[k] @ d) / r for k in range(6) if f[k]) < cos_max:
                 continue
-            counts[j] += _walk_one(blocked, grid.to_voxel(c[None])[0], grid.to_voxel(v[None])[0])
+            counts[j] += walk_one(blocked, grid.to_voxel(c[None])[0], grid.to_voxel(v[None])[0])
     return counts
 
 
-def _walk_one(blocked: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
+def walk_one(blocked: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
     """Scalar Amanatides-Woo walk from a to b (voxel coordinates); true if no blocked
     voxel except a's own is crossed."""
     d = b - a

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import elkai
 import numpy as np
 
-from explore.roadmap import Roadmap, RoadmapError, shortest_paths
+from explore.vueplan.roadmap import Roadmap, RoadmapError, shortest_paths
 
 
 @dataclass

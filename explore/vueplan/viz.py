@@ -1,6 +1,6 @@
 """Rerun logging for VuePlan: the site mesh, Phase I candidates / views / visible walls,
 the Voronoi roadmap and tour, scans, the voxel space and Phase II candidate scores.
-Entity paths follow DESIGN.md: world/map/mesh, world/map/points/<scan>, world/plan/...
+Entity paths follow docs/ARCHITECTURE.md: world/map/mesh, world/map/points/<scan>, world/plan/...
 (phase1 candidates and views, roadmap, tour = world/plan/path, scan positions),
 world/voxels/{occupied,boundary_unseen}, world/nbv/{candidates,best}, plots/vueplan/...;
 timeline `step` = scan / Phase II iteration."""
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import rerun as rr
 
-from explore.voxel_grid import OCCUPIED, VoxelGrid, boundary_unseen
+from explore.vueplan.voxel_grid import OCCUPIED, VoxelGrid, boundary_unseen
 
 
 def _z(xy: np.ndarray, z: float) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Dense points from GPU plane-sweep depth maps (`ibr.plane_sweep`), the stand-in for the
+"""Dense points from GPU plane-sweep depth maps (`ibr.proxy.plane_sweep`), the stand-in for the
 dense multi-view stereo (PMVS) whose point cloud Foster, Wang & Grupen mesh into their proxy.
 
 The photos are swept at reduced resolution between depths bracketing the sparse triangulated
@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ibr.plane_sweep import PlaneSweep, PlaneSweepConfig, consistency_filter
+from ibr.proxy.plane_sweep import PlaneSweep, PlaneSweepConfig, consistency_filter
 from ibr.scene import Scene, View
 
 

@@ -26,7 +26,7 @@ import numpy as np
 from ibr.gl import load_program, shared_context
 from ibr.scene import Scene
 from ibr.source_views import SourceViews, pixel_from_world
-from ibr.triangulation import neighbour_pairs
+from ibr.proxy.triangulation import neighbour_pairs
 
 
 @dataclass(frozen=True)

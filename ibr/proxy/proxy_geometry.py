@@ -5,11 +5,11 @@ The pipeline Foster, Wang & Grupen use to get a proxy for unstructured lumigraph
 mesh), with their dense multi-view stereo replaced by triangulated SIFT matches:
 
 1. SIFT features per image, matched between neighbouring views and triangulated with the
-   fixed known poses (`ibr.triangulation`);
-2. statistical outlier removal and PCA normals oriented towards the cameras (`ibr.normals`);
-3. a screened Poisson mesh, trimmed to where there are points (`ibr.poisson`).
+   fixed known poses (`ibr.proxy.triangulation`);
+2. statistical outlier removal and PCA normals oriented towards the cameras (`ibr.proxy.normals`);
+3. a screened Poisson mesh, trimmed to where there are points (`ibr.proxy.poisson`).
 
-Optionally (`ProxyConfig.dense`) dense points from GPU plane-sweep stereo (`ibr.dense_points`)
+Optionally (`ProxyConfig.dense`) dense points from GPU plane-sweep stereo (`ibr.proxy.dense_points`)
 join the SIFT points before meshing, closer to the paper's dense point cloud.
 
 Results are cached in `scene.root / ".ibrnav_cache"` (a temporary folder for synthetic scenes),
@@ -29,11 +29,11 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ibr.dense_points import DenseConfig, dense_points
-from ibr.normals import estimate_normals, remove_outliers
-from ibr.poisson import PoissonConfig, poisson_mesh
+from ibr.proxy.dense_points import DenseConfig, dense_points
+from ibr.proxy.normals import estimate_normals, remove_outliers
+from ibr.proxy.poisson import PoissonConfig, poisson_mesh
 from ibr.scene import Scene
-from ibr.triangulation import TriangulationConfig, sift_features, triangulate_views
+from ibr.proxy.triangulation import TriangulationConfig, sift_features, triangulate_views
 
 
 @dataclass(frozen=True)
@@ -47,7 +47,7 @@ class ProxyConfig:
     normal_neighbours: int = 16
     """Neighbours used for each point's PCA normal."""
     dense: DenseConfig | None = None
-    """Also mesh dense points from GPU plane-sweep depth maps (`ibr.dense_points`); None: the
+    """Also mesh dense points from GPU plane-sweep depth maps (`ibr.proxy.dense_points`); None: the
     triangulated SIFT points alone."""
 
 

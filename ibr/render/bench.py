@@ -11,7 +11,7 @@ import numpy as np
 
 from ibr.bench import best_seconds
 from ibr.scene import load_scene
-from ibr.ulr import UlrRenderer, fill_depth_holes, ulr_blend_numpy
+from ibr.render.ulr import UlrRenderer, fill_depth_holes, ulr_blend_numpy
 
 
 def ulr_fps_640x480_10src() -> dict:

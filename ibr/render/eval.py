@@ -6,27 +6,20 @@ covers (PSNR, SSIM) together with the covered fraction.
 
 from __future__ import annotations
 
-import sys
+import logging
 from dataclasses import dataclass
-from typing import Callable
 
 import cv2
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
-from ibr.depth_maps import render_depth_maps
-from ibr.errors import InputError
-from ibr.lightfield import LightFieldConfig, LightFieldRenderer
-from ibr.nearest_view import NearestViewRenderer
-from ibr.dense_points import DenseConfig
-from ibr.proxy_geometry import ProxyConfig, build_proxy
+from ibr.progress import progress
+from ibr.render.renderers import METHODS, RendererError, make_renderers, proxy_mesh
 from ibr.scene import Scene
-from ibr.ulr import UlrConfig, UlrRenderer
 
-METHODS = ("ulr", "nearest", "lightfield", "lightfield_local")
+log = logging.getLogger(__name__)
 
-
-class EvalError(InputError):
+class EvalError(RendererError):
     """Bad evaluation request (unknown method, too few views, no mesh for --proxy mesh)."""
 
 
@@ -72,7 +65,7 @@ class EvalConfig:
     """Renderers to compare (subset of METHODS)."""
     proxy: str = "photos"
     """"photos": proxy triangulated from the other photos; "dense": also with plane-sweep
-    points (`ibr.dense_points`); "mesh": the scene's own mesh."""
+    points (`ibr.proxy.dense_points`); "mesh": the scene's own mesh."""
     max_views: int = 0
     """Evaluate only the first this many held-out views (0 = all)."""
     k: int = 4
@@ -82,33 +75,7 @@ class EvalConfig:
     area-downsampled; the proxy and the sources stay at full resolution)."""
 
 
-def make_renderers(sources: Scene, mesh, methods, k: int) -> dict:
-    """The requested renderers over one proxy mesh, sharing its source depth maps."""
-    depths = render_depth_maps(mesh, sources.cameras)
-    makers = {
-        "ulr": lambda: UlrRenderer(sources, mesh, config=UlrConfig(k=k), source_depths=depths),
-        "nearest": lambda: NearestViewRenderer(sources, mesh, source_depths=depths),
-        "lightfield": lambda: LightFieldRenderer(sources, mesh),
-        "lightfield_local": lambda: LightFieldRenderer(
-            sources, mesh, config=LightFieldConfig(mode="local_depth"), source_depths=depths),
-    }
-    return {m: makers[m]() for m in methods}
-
-
-def proxy_mesh(scene: Scene, kind: str):
-    """The scene's proxy: "mesh" its own mesh, "photos" triangulated from its photos, "dense"
-    with plane-sweep points too."""
-    if kind == "mesh":
-        if scene.mesh is None:
-            raise EvalError(f"scene {scene.name!r} has no mesh; use --proxy photos")
-        return scene.mesh
-    if kind not in ("photos", "dense"):
-        raise EvalError(f"unknown proxy {kind!r}; use photos, dense or mesh")
-    return build_proxy(scene, ProxyConfig(dense=DenseConfig() if kind == "dense" else None)).mesh
-
-
-def evaluate_scene(scene: Scene, cfg: EvalConfig = EvalConfig(),
-                   progress: Callable[[str], None] | None = None) -> dict:
+def evaluate_scene(scene: Scene, cfg: EvalConfig = EvalConfig()) -> dict:
     """Leave-one-out PSNR / SSIM / coverage of each method; the JSON-ready result
     {"scene", "proxy", "methods": {m: {"psnr_mean", "ssim_mean", "coverage_mean",
     "psnr_common_mean", "per_view"}}}. PSNR and SSIM are over the pixels each method covers
@@ -123,12 +90,11 @@ def evaluate_scene(scene: Scene, cfg: EvalConfig = EvalConfig(),
         raise EvalError(f"scene {scene.name!r} has {len(scene)} views; leave-one-out needs at least 3")
     if cfg.proxy == "mesh" and scene.mesh is None:
         raise EvalError(f"scene {scene.name!r} has no mesh; use --proxy photos")
-    say = progress or (lambda s: None)
     per = {m: [] for m in cfg.methods}
     views = scene.views[: cfg.max_views] if cfg.max_views else scene.views
-    for n, held in enumerate(views):
+    for n, held in enumerate(progress(views, desc="held-out views", logger=log)):
         sources = scene.without(held.name)
-        say(f"[{n + 1}/{len(views)}] {held.name}: proxy from {len(sources)} photos")
+        log.info(f"[{n + 1}/{len(views)}] {held.name}: proxy from {len(sources)} photos")
         mesh = proxy_mesh(sources, cfg.proxy)
         camera, photo = at_scale(held.camera, held.image, cfg.scale)
         renders = {}
@@ -142,7 +108,7 @@ def evaluate_scene(scene: Scene, cfg: EvalConfig = EvalConfig(),
                    "psnr_common": psnr(image, photo, common),
                    "psnr_exposure": psnr(exposure_matched(image, photo, covered), photo, covered)}
             per[m].append(row)
-            say(f"    {m:17s} PSNR {row['psnr']:6.2f} dB  SSIM {row['ssim']:.3f}  coverage {row['coverage']:.3f}"
+            log.info(f"    {m:17s} PSNR {row['psnr']:6.2f} dB  SSIM {row['ssim']:.3f}  coverage {row['coverage']:.3f}"
                 f"  (PSNR {row['psnr_common']:6.2f} dB on the {common.mean():.3f} all methods cover)")
     return {"scene": scene.name, "proxy": cfg.proxy, "methods": {m: summarise(rows) for m, rows in per.items()}}
 
@@ -165,6 +131,3 @@ def summarise(rows: list[dict]) -> dict:
             "psnr_common_mean": mean("psnr_common"), "psnr_exposure_mean": mean("psnr_exposure"),
             "per_view": rows}
 
-
-def stderr_progress(line: str) -> None:
-    print(line, file=sys.stderr, flush=True)

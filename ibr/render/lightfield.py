@@ -35,9 +35,9 @@ import trimesh
 from scipy.spatial import Delaunay, QhullError
 
 from ibr.camera import Camera
-from ibr.depth_maps import render_depth_maps
+from ibr.render.depth_maps import render_depth_maps
 from ibr.gl import load_program, shared_context
-from ibr.hole_filling import push_pull
+from ibr.render.hole_filling import push_pull
 from ibr.mesh_renderer import MeshRenderer
 from ibr.scene import Scene
 from ibr.source_views import SourceViews

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ibr.camera import Camera
-from ibr.ulr import UlrConfig, UlrFrame, UlrRenderer
+from ibr.render.ulr import UlrConfig, UlrFrame, UlrRenderer
 
 
 def nearest_source(camera: Camera, sources: list[Camera], scene_depth_m: float) -> int:

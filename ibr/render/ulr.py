@@ -33,9 +33,9 @@ import numpy as np
 import trimesh
 
 from ibr.camera import Camera
-from ibr.depth_maps import render_depth_maps
+from ibr.render.depth_maps import render_depth_maps
 from ibr.gl import load_program, shared_context
-from ibr.hole_filling import push_pull
+from ibr.render.hole_filling import push_pull
 from ibr.scene import Scene
 from ibr.source_views import SourceViews, project_with
 

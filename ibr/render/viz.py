@@ -1,4 +1,4 @@
-"""Rerun logging of image-based renders (see DESIGN.md for the entity tree)."""
+"""Rerun logging of image-based renders (entity tree: docs/ARCHITECTURE.md)."""
 
 from __future__ import annotations
 

@@ -3,65 +3,36 @@ sensor readings, pose (true, for a simulated robot), pose estimate and the map s
 rerun. `--robot sim` (default) simulates it; `--robot nxt:PORT` drives a LEGO NXT on a
 serial port (`nxt:emulator`: the built-in NXT emulator). `--session DIR` writes every
 photo, reading and estimate to a capture session as it happens and resumes an
-interrupted one from where it stopped (`robot.capture_mission`)."""
+interrupted one from where it stopped (`robot.drive`)."""
 
 from __future__ import annotations
 
 import argparse
 import contextlib
-import sys
-import tempfile
+import logging
 import time
 
 import numpy as np
-import rerun as rr
 
-from explore import viz as explore_viz
-from ibr import viz as ibr_viz
-from ibr.errors import InputError
-from ibr.synthetic import loop_route, make_world
-from localization import viz as loc_viz
-from robot import viz as robot_viz
-from robot.capture_mission import run_capture_mission
-from robot.session import CaptureSession
-from robot.sim_robot import SimRobot, SimRobotConfig
-from robot.waypoint_follower import FollowerConfig, follow_waypoints
+from ibrnav import recording
+from ibrnav.args import add_robot_args, open_robot
+
+log = logging.getLogger(__name__)
 
 
-@contextlib.contextmanager
-def open_robot(args: argparse.Namespace, world, start: np.ndarray):
-    """The robot `--robot` names, placed at `start`; closed (motors stopped) on exit."""
-    if args.robot == "sim":
-        config = SimRobotConfig(image_size=(args.width, args.height))
-        yield SimRobot(world, config, np.random.default_rng(args.seed), start_pose=start)
-        return
-    if not args.robot.startswith("nxt:") or args.robot == "nxt:":
-        raise InputError(f"--robot {args.robot!r}: use 'sim' or 'nxt:PORT' (e.g. nxt:/dev/rfcomm0, nxt:emulator)")
-    from robot.nxt import NXTRobot, NXTRobotConfig
-    from robot.photo_source import FolderPhotoSource, OpenCVPhotoSource
+def run(args: argparse.Namespace) -> int:
+    import rerun as rr
 
-    port = args.robot[4:]
-    with contextlib.ExitStack() as stack:
-        photos_dir = args.photos
-        if port == "emulator":
-            from robot.nxt_emulator import EmulatorConfig, NXTEmulator
+    from explore import viz as explore_viz
+    from ibr import viz as ibr_viz
+    from ibr.synthetic import loop_route, make_world
+    from localization import viz as loc_viz
+    from robot import viz as robot_viz
+    from robot.drive import run_drive
+    from robot.session import CaptureSession
+    from robot.sim_robot import SimRobot
+    from robot.waypoint_follower import FollowerConfig, follow_waypoints
 
-            photos_dir = photos_dir or stack.enter_context(tempfile.TemporaryDirectory(prefix="nxt_card_"))
-            x0, y0, x1, y1 = world.free_space.bounds
-            emu = stack.enter_context(NXTEmulator(
-                EmulatorConfig(time_scale=8.0, room_half_size_m=((x1 - x0) / 2, (y1 - y0) / 2),
-                               image_size=(args.width, args.height)), camera_dir=photos_dir, pose=tuple(start)))
-            port = emu.port
-        if args.camera is not None:
-            source = OpenCVPhotoSource(int(args.camera) if args.camera.isdigit() else args.camera)
-        elif photos_dir:
-            source = FolderPhotoSource(photos_dir)
-        else:
-            raise InputError("--robot nxt:PORT needs --photo-dir DIR (the camera card's folder) or --camera DEVICE")
-        yield stack.enter_context(NXTRobot(port, NXTRobotConfig(image_size=(args.width, args.height)), source))
-
-
-def drive(args: argparse.Namespace) -> int:
     world = make_world("office", args.seed)
     route = loop_route(world)
     start = np.array([*route[0], 0.0])
@@ -77,12 +48,11 @@ def drive(args: argparse.Namespace) -> int:
             if session.last_commit is not None:
                 print(f"resuming {args.session} after leg {session.last_commit['step'] + 1} "
                       f"({len(session.photos)} photos kept; repaired: {session.recovery or 'nothing'})")
-            legs = ((m.leg, m.photo) for m in run_capture_mission(robot, session, waypoints, start, args.seed,
-                                                                   follower))
+            legs = ((m.leg, m.photo) for m in run_drive(robot, session, waypoints, start, args.seed, follower))
         else:
             legs = ((leg, robot.capture()) for leg in follow_waypoints(
                 robot, waypoints, start, follower, np.random.default_rng(args.seed + 1)))
-        ibr_viz.rerun_setup(args, "ibrnav_drive", "ibrnav_drive.rrd")
+        recording.rerun_setup(args, "ibrnav_drive", "ibrnav_drive.rrd")
         ibr_viz.log_mesh("world/map/mesh", world.mesh)
         explore_viz.log_floor_plan(world.free_space)
         explore_viz.log_path(route, static=True)
@@ -101,10 +71,9 @@ def drive(args: argparse.Namespace) -> int:
             n_bumps += leg.motion.blocked
             n_legs += 1
             if leg.index % 10 == 0:
-                print(f"[drive] leg {leg.index + 1}: heading for waypoint {leg.waypoint + 1}/"
-                      f"{len(waypoints)}, {photo.index + 1} photos, "
-                      f"{time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
-        ibr_viz.rerun_teardown(args)
+                log.info(f"leg {leg.index + 1}: heading for waypoint {leg.waypoint + 1}/{len(waypoints)}, "
+                         f"{photo.index + 1} photos, {time.perf_counter() - t0:.0f} s")
+        recording.rerun_teardown(args)
     if leg is None:
         print("nothing left to do: the mission had already finished")
         return 0
@@ -118,14 +87,8 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=int, default=0, help="world and noise seed")
     p.add_argument("--laps", type=int, default=1, help="times round the loop")
     p.add_argument("--max-legs", type=int, default=400, help="stop after this many legs")
-    p.add_argument("--width", type=int, default=320, help="camera image width (px)")
-    p.add_argument("--height", type=int, default=240, help="camera image height (px)")
-    p.add_argument("--robot", default="sim", help="'sim', or 'nxt:PORT' for a LEGO NXT on a serial port "
-                   "(nxt:emulator: the built-in emulated brick)")
-    p.add_argument("--photo-dir", "--photos", dest="photos", default=None,
-                   help="with nxt: the folder the camera's photos arrive in")
-    p.add_argument("--camera", default=None, help="with nxt: an OpenCV capture device (index, file or pattern)")
+    add_robot_args(p)
     p.add_argument("--session", default=None, help="capture-session folder: every photo, reading and estimate "
                    "is written there as it happens; an interrupted session resumes")
-    ibr_viz.add_rerun_args(p)
-    p.set_defaults(func=drive)
+    recording.add_rerun_args(p)
+    p.set_defaults(func=run)

@@ -5,23 +5,25 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
+import logging
 import time
 from pathlib import Path
 
 import numpy as np
-import rerun as rr
 
-from ibr import viz as ibr_viz
-from ibr.errors import InputError
-from ibr.synthetic import make_world
-from localization import viz
-from robot.eval_track import TrackConfig, run_tracking
-from robot import viz as robot_viz
-from robot.protocol import robot_camera
+from ibrnav import recording
+from robot.eval_track import TrackConfig
+
+log = logging.getLogger(__name__)
 
 
 def _logger(world):
+    import rerun as rr
+
+    from localization import viz
+    from robot import viz as robot_viz
+    from robot.protocol import robot_camera
+
     def on_step(step, report, robot, photo, mcl):
         rr.set_time("step", sequence=step)
         rr.set_time("sensor_time", duration=photo.time_s)
@@ -35,25 +37,29 @@ def _logger(world):
     return on_step
 
 
-def eval_track(args: argparse.Namespace) -> int:
-    if not args.scene.startswith("synthetic:"):
-        raise InputError(f"{args.scene}: eval-track needs a synthetic world (synthetic:office)")
-    world = make_world(args.scene.split(":", 1)[1].partition("?")[0], args.world_seed)
+def run(args: argparse.Namespace) -> int:
+    from ibr import viz as ibr_viz
+    from ibr.progress import progress
+    from ibr.scene import parse_scene_spec
+    from ibr.synthetic import make_world
+    from robot.eval_track import run_tracking
+
+    spec = parse_scene_spec(args.scene, synthetic_only=True, allowed=("seed",))
+    world = make_world(spec.world, spec.seed(args.world_seed))
     config = TrackConfig(steps=args.steps, kidnap_step=None if args.kidnap_step < 0 else args.kidnap_step,
                          global_init=not args.known_start, n_particles=args.particles,
                          n_max=args.max_particles)
-    ibr_viz.rerun_setup(args, "ibrnav_eval_track", "eval_track.rrd")
+    recording.rerun_setup(args, "ibrnav_eval_track", "eval_track.rrd")
     ibr_viz.log_mesh("world/map/mesh", world.mesh)
     trials = []
-    for i in range(args.trials):
+    for i in progress(range(args.trials), desc="trials", logger=log):
         t = time.perf_counter()
         res = run_tracking(world, args.seed + i, config, _logger(world) if i == 0 else None)
         res["seconds"] = time.perf_counter() - t
         trials.append(res)
-        print(f"[eval-track] trial {i + 1}/{args.trials}: converged after {res['steps_to_converge']} steps, "
-              f"recovered after {res['steps_to_recover']} steps, {res['seconds']:.0f} s",
-              file=sys.stderr, flush=True)
-    ibr_viz.rerun_teardown(args)
+        log.info(f"trial {i + 1}/{args.trials}: converged after {res['steps_to_converge']} steps, "
+                 f"recovered after {res['steps_to_recover']} steps, {res['seconds']:.0f} s")
+    recording.rerun_teardown(args)
     summary = _summary(trials, config)
     out = {"scene": args.scene, "config": {k: v for k, v in vars(config).items()}, **summary, "trials": trials}
     if args.json:
@@ -80,7 +86,8 @@ def _summary(trials: list[dict], config: TrackConfig) -> dict:
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("eval-track", help="particle-filter tracking + kidnapping in a synthetic world")
-    p.add_argument("scene", nargs="?", default="synthetic:office", help="synthetic:NAME (default office)")
+    p.add_argument("scene", nargs="?", default="synthetic:office",
+                   help="synthetic:NAME[?seed=N] (default office; the seed defaults to --world-seed)")
     p.add_argument("--trials", type=int, default=20)
     d = TrackConfig()
     p.add_argument("--steps", type=int, default=d.steps, help="legs (photos) per trial")
@@ -92,5 +99,5 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of trial 0 (trial i uses seed + i)")
     p.add_argument("--world-seed", type=int, default=0)
     p.add_argument("--json", help="write per-trial results and the summary here")
-    ibr_viz.add_rerun_args(p)
-    p.set_defaults(func=eval_track)
+    recording.add_rerun_args(p)
+    p.set_defaults(func=run)

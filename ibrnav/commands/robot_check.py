@@ -8,15 +8,14 @@ import time
 
 import numpy as np
 
-from robot import nxt_protocol as P
-from robot.nxt import LinkConfig, NXTRobot, NXTRobotConfig
 
+def run(args: argparse.Namespace) -> int:
+    from robot.nxt.driver import LinkConfig, NXTRobot, NXTRobotConfig
 
-def check(args: argparse.Namespace) -> int:
     emulator = None
     port = args.port
     if args.emulator:
-        from robot.nxt_emulator import EmulatorConfig, NXTEmulator
+        from robot.nxt.emulator import EmulatorConfig, NXTEmulator
 
         emulator = NXTEmulator(EmulatorConfig(time_scale=4.0))
         port = emulator.port
@@ -38,8 +37,10 @@ def check(args: argparse.Namespace) -> int:
     return 0
 
 
-def pulse(robot: NXTRobot, port: int, degrees: float, power: int = 30, timeout_s: float = 3.0) -> float:
-    """Run one motor `degrees` forward at low power, brake; the degrees it turned."""
+def pulse(robot, port: int, degrees: float, power: int = 30, timeout_s: float = 3.0) -> float:
+    """Run one motor of an `NXTRobot` `degrees` forward at low power, brake; the degrees it turned."""
+    from robot.nxt import protocol as P
+
     b = robot.brick
     start = b.get_output_state(port).rotation_count
     b.set_output_state(port, power, P.MODE_ON | P.MODE_BRAKE | P.MODE_REGULATED, P.REGULATION_SPEED, 0,
@@ -64,4 +65,4 @@ def register(subparsers) -> None:
     c.add_argument("--emulator", action="store_true", help="check against the built-in NXT emulator instead")
     c.add_argument("--pulse-deg", type=float, default=90.0, help="how far to turn each wheel (degrees)")
     c.add_argument("--timeout", type=float, default=1.0, help="seconds to wait for each reply")
-    c.set_defaults(func=check)
+    c.set_defaults(func=run)

@@ -11,65 +11,16 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
+import logging
 import time
 from pathlib import Path
-from urllib.parse import parse_qs
 
 import numpy as np
-import trimesh
 
-from explore.floorplan import FloorPlan, floor_plan_from_mesh, load_floor_plan
-from explore.roadmap import build_roadmap
-from explore.tour import plan_tour
-from explore.voxel_grid import VoxelGrid, insert_scan
-from explore.vueplan_phase1 import Phase1Config, plan_phase1
-from explore.vueplan_phase2 import Phase2Config, SurfaceCoverage, ground_candidates, plan_phase2
-from ibr import viz
 from ibr.errors import InputError
-from ibr.mesh_renderer import MeshRenderer
-from ibr.scan_simulator import ScanConfig, simulate_scan
+from ibrnav import recording
 
-
-class SiteError(InputError):
-    """A SITE argument that names no synthetic world or readable mesh."""
-
-
-def _progress(msg: str) -> None:
-    print(f"[vueplan] {msg}", file=sys.stderr, flush=True)
-
-
-def load_site(args: argparse.Namespace) -> tuple[trimesh.Trimesh, FloorPlan, MeshRenderer, float]:
-    """(mesh, floor plan, renderer, scanner height m) for the SITE argument."""
-    site = args.site
-    if site.startswith("synthetic:"):
-        from ibr.synthetic import WORLDS, make_world
-        name, _, query = site[len("synthetic:"):].partition("?")
-        if name not in WORLDS:
-            raise SiteError(f"{site}: unknown synthetic world; choose one of {sorted(WORLDS)}")
-        try:
-            seed = int(parse_qs(query).get("seed", ["0"])[0])
-        except ValueError:
-            raise SiteError(f"{site}: seed must be an integer") from None
-        world = make_world(name, seed)
-        indoor = world.look_outward  # rooms: the exterior ring is a wall
-        plan = FloorPlan(world.free_space, exterior_is_wall=indoor or args.cover_outer)
-        return world.mesh, plan, world.renderer(), world.view_height_m
-    path = Path(site)
-    if not path.is_file():
-        raise SiteError(f"{site}: not a synthetic:NAME site and no such mesh file")
-    try:
-        mesh = trimesh.load(path, force="mesh")
-    except Exception as e:  # trimesh raises many types for bad files
-        raise SiteError(f"{site}: cannot read a mesh ({e})") from e
-    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise SiteError(f"{site}: mesh has no triangles")
-    if args.floorplan:
-        plan = load_floor_plan(args.floorplan, exterior_is_wall=args.cover_outer)
-    else:
-        plan = floor_plan_from_mesh(mesh, args.slice_height)
-        plan = FloorPlan(plan.free_space, exterior_is_wall=args.cover_outer)
-    return mesh, plan, MeshRenderer(mesh), args.scan_height
+log = logging.getLogger(__name__)
 
 
 def print_table(rows: list) -> None:
@@ -85,20 +36,27 @@ def check_flags(args: argparse.Namespace) -> None:
     for flag in ("candidates", "voxel", "scan_resolution", "max_range", "candidate_stride",
                  "surface_samples", "roadmap_spacing"):
         if getattr(args, flag) <= 0:
-            raise SiteError(f"--{flag.replace('_', '-')} must be positive, got {getattr(args, flag)}")
+            raise InputError(f"--{flag.replace('_', '-')} must be positive, got {getattr(args, flag)}")
     if not 0 <= args.min_range < args.max_range:
-        raise SiteError(f"--min-range {args.min_range} must be in [0, --max-range {args.max_range})")
+        raise InputError(f"--min-range {args.min_range} must be in [0, --max-range {args.max_range})")
     if not 0 < args.fov <= 360 or not 0 < args.grazing < 90:
-        raise SiteError(f"--fov {args.fov} must be in (0, 360] and --grazing {args.grazing} "
+        raise InputError(f"--fov {args.fov} must be in (0, 360] and --grazing {args.grazing} "
                         "in (0, 90) degrees")
 
 
 def run(args: argparse.Namespace) -> int:
-    from explore import viz_vueplan as vv
+    from explore.vueplan import viz as vv
+    from explore.vueplan.phase1 import Phase1Config, plan_phase1
+    from explore.vueplan.roadmap import build_roadmap
+    from explore.vueplan.site import load_site
+    from explore.vueplan.tour import plan_tour
+    from ibr import viz
+
     check_flags(args)
     rng = np.random.default_rng(args.seed)
-    mesh, plan, renderer, height = load_site(args)
-    viz.rerun_setup(args, "ibrnav_vueplan", "vueplan.rrd")
+    mesh, plan, renderer, height = load_site(args.site, args.floorplan, args.cover_outer, args.slice_height,
+                                             args.scan_height)
+    recording.rerun_setup(args, "ibrnav_vueplan", "vueplan.rrd")
     viz.log_mesh("world/map/mesh", mesh)
     out: dict = {}
 
@@ -106,11 +64,11 @@ def run(args: argparse.Namespace) -> int:
                          max_range_m=args.max_range, max_grazing_rad=np.deg2rad(args.grazing),
                          field_of_view_rad=np.deg2rad(args.fov), min_overlap=args.overlap,
                          min_gain=args.min_gain, coverage_target=args.coverage_target)
-    _progress(f"Phase I: {args.candidates} candidates")
+    log.info(f"Phase I: {args.candidates} candidates")
     p1 = plan_phase1(plan, p1cfg, rng)
     if not p1.chosen:
         raise InputError(f"{args.site}: Phase I found no view that sees any wall")
-    _progress(f"Phase I: {len(p1.chosen)} views, {100 * p1.boundary_coverage:.1f}% of the wall "
+    log.info(f"Phase I: {len(p1.chosen)} views, {100 * p1.boundary_coverage:.1f}% of the wall "
               f"boundary in {p1.seconds:.2f} s")
     out["phase1"] = {"views": len(p1.chosen), "boundary_coverage": p1.boundary_coverage,
                      "seconds": p1.seconds}
@@ -118,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
 
     roadmap = build_roadmap(plan, args.roadmap_spacing)
     tour = plan_tour(roadmap, p1.views)
-    _progress(f"tour: {tour.length_m:.1f} m over a {len(roadmap.nodes)}-node Voronoi roadmap")
+    log.info(f"tour: {tour.length_m:.1f} m over a {len(roadmap.nodes)}-node Voronoi roadmap")
     vv.log_roadmap(roadmap.nodes, roadmap.edges)
     vv.log_tour(tour.path)
 
@@ -127,11 +85,15 @@ def run(args: argparse.Namespace) -> int:
     out["tour_length_m"] = tour.length_m
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=2) + "\n")
-    viz.rerun_teardown(args)
+    recording.rerun_teardown(args)
     return 0
 
 
 def run_phase2(args, mesh, plan, renderer, height, views_xy, rng, vv) -> list[dict]:
+    from explore.vueplan.phase2 import Phase2Config, SurfaceCoverage, ground_candidates, plan_phase2
+    from explore.vueplan.scan_simulator import ScanConfig, simulate_scan
+    from explore.vueplan.voxel_grid import VoxelGrid, insert_scan
+
     scfg = ScanConfig(resolution_deg=args.scan_resolution, min_range_m=args.min_range,
                       max_range_m=args.max_range, range_noise_m=args.range_noise)
     lo, hi = mesh.bounds
@@ -145,12 +107,12 @@ def run_phase2(args, mesh, plan, renderer, height, views_xy, rng, vv) -> list[di
         scan = simulate_scan(renderer, origin, scfg, rng)
         coverage.add(scan.points)
         vv.log_scan(step, f"scan_{step:02d}", origin, scan.points)
-        _progress(f"scan {step} at ({origin[0]:.1f}, {origin[1]:.1f}): {len(scan.points)} points "
+        log.info(f"scan {step} at ({origin[0]:.1f}, {origin[1]:.1f}): {len(scan.points)} points "
                   f"in {time.perf_counter() - t:.1f} s")
         step += 1
         return scan
 
-    _progress(f"voxel grid {grid.shape} ({np.prod(grid.shape):,} voxels of {args.voxel} m)")
+    log.info(f"voxel grid {grid.shape} ({np.prod(grid.shape):,} voxels of {args.voxel} m)")
     for xy in views_xy:
         scan = acquire(np.r_[xy, height])
         insert_scan(grid, scan.origin, scan.points, scan.no_return, scan.max_range_m)
@@ -159,7 +121,7 @@ def run_phase2(args, mesh, plan, renderer, height, views_xy, rng, vv) -> list[di
                          max_views=args.max_nbv, sensor_height_m=height,
                          candidate_stride=args.candidate_stride, ray_backend=args.ray_backend)
     candidates = ground_candidates(grid, plan.free_space, p2cfg)
-    _progress(f"Phase II: {len(candidates)} potential views, threshold {args.threshold}")
+    log.info(f"Phase II: {len(candidates)} potential views, threshold {args.threshold}")
 
     def on_row(row, counts):
         k = len(rows_seen)
@@ -167,7 +129,7 @@ def run_phase2(args, mesh, plan, renderer, height, views_xy, rng, vv) -> list[di
         vv.log_voxels(step, grid)
         vv.log_nbv_candidates(step, candidates, counts, row.nbv)
         vv.log_phase2_row(step, row)
-        _progress(f"{'Phase I' if k == 0 else f'NBV {k}'}: boundary unseen {row.boundary_unseen}, "
+        log.info(f"{'Phase I' if k == 0 else f'NBV {k}'}: boundary unseen {row.boundary_unseen}, "
                   f"best view sees {row.visible_to_nbv} ({row.seconds:.1f} s)")
 
     rows_seen: list = []
@@ -211,5 +173,5 @@ def register(subparsers) -> None:
                    help="true-surface samples for coverage")
     p.add_argument("--seed", type=int, default=0, help="random seed")
     p.add_argument("--json", help="write the results to this JSON file")
-    viz.add_rerun_args(p)
+    recording.add_rerun_args(p)
     p.set_defaults(func=run)

@@ -1,4 +1,4 @@
-"""Resuming the scene-capture mission (`robot.adaptive_exploration.run_mission`) from its
+"""Resuming the scene-capture mission (`robot.mission.mission.run_mission`) from its
 capture session folder (`robot.session`): a mission killed at any moment goes on from its
 last committed state with nothing lost and no photo taken twice.
 
@@ -25,14 +25,13 @@ Poses: world SE(2) (x, y, theta), metres, radians.
 from __future__ import annotations
 
 import io
-import os
 
 import numpy as np
 import trimesh
 
 from ibr.camera import Camera
 from robot.protocol import Photo
-from robot.session import CaptureSession, SessionError, _fsync_dir
+from robot.session import CaptureSession, SessionError, write_atomic
 
 
 class MissionJournal:
@@ -113,8 +112,6 @@ class SessionJournal(MissionJournal):
 
     def round_done(self, mission, result) -> None:
         """Commit the adaptive stage's state after `result.rounds` rounds (0: the initial map)."""
-        from robot.capture_mission import sim_state
-
         name = f"maps/round_{result.rounds:02d}.npz"
         self._save_map(name, mission)
         loc = mission.body.est
@@ -123,7 +120,7 @@ class SessionJournal(MissionJournal):
                  "path_m": mission.body.path_m, "fixes": mission.fixes, "failed": mission.failed,
                  "given_up": mission.given_up, "goals": mission.goals_reached, "rng": mission.rng.bit_generator.state}
         if hasattr(self.robot, "true_pose"):
-            state["sim"] = sim_state(self.robot)
+            state["sim"] = self.robot.state()
             state["sim_rng"] = self.robot.rng.bit_generator.state
         self._commit(state)
 
@@ -139,17 +136,11 @@ class SessionJournal(MissionJournal):
         np.savez(buf, **arrays)
         path = self.session.folder / name
         path.parent.mkdir(exist_ok=True)
-        tmp = path.with_name(f".{path.name}.tmp")
-        with open(tmp, "wb") as f:
-            f.write(buf.getvalue())
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-        _fsync_dir(path.parent)
+        write_atomic(path, buf.getvalue())
 
     def load_map(self, state: dict):
         """(RobotMap, {photo index: Camera}) of a committed adaptive state."""
-        from robot.initial_map import RobotMap
+        from robot.mission.map_building import RobotMap
 
         path = self.session.folder / state["map_file"]
         try:
@@ -167,9 +158,7 @@ class SessionJournal(MissionJournal):
 def restore_adaptive(journal: SessionJournal, state: dict, robot, mission_rng: np.random.Generator) -> None:
     """Put the robot (a `SimRobot`'s simulator state and noise) and the mission's generator
     back as committed."""
-    from robot.capture_mission import restore_sim_state
-
     mission_rng.bit_generator.state = state["rng"]
     if "sim" in state and hasattr(robot, "true_pose"):
-        restore_sim_state(robot, state["sim"])
+        robot.restore(state["sim"])
         robot.rng.bit_generator.state = state["sim_rng"]

@@ -31,7 +31,7 @@ from localization.dead_reckoning import CompassDeadReckoning
 from localization.motion_models import wrap_angle
 from localization.particle_filter import ParticleFilter, ParticleFilterConfig
 from robot.protocol import MotionResult, Robot
-from robot.random_exploration import Body
+from robot.mission.random_stage import Body
 
 
 @dataclass(frozen=True)
@@ -81,6 +81,12 @@ class MissionLocalizer:
 
     def _update_estimate(self) -> None:
         self.mean, self.cov, _ = self.pf.estimate()
+
+    def set_particles(self, particles: np.ndarray, log_w: np.ndarray) -> None:
+        """Replace the filter's particles (N, 3) and log-weights (N,), e.g. as a resumed
+        mission committed them; the estimate follows."""
+        self.pf.particles, self.pf.log_w = np.asarray(particles, float), np.asarray(log_w, float)
+        self._update_estimate()
 
     @property
     def pose(self) -> np.ndarray:

@@ -11,7 +11,7 @@ which gives metric scale from the odometry and heading from the compass.
 
 `extend_map` adds photos whose poses were localised (PnP) later: their SIFT features are
 matched with their stereo partners (`stereo_tracks`) and triangulated with the poses *fixed*
-(`ibr.triangulation`, no bundle adjustment), and the mesh is rebuilt. Frames: world metres, z up, floor z = 0;
+(`ibr.proxy.triangulation`, no bundle adjustment), and the mesh is rebuilt. Frames: world metres, z up, floor z = 0;
 SE(2) robot poses (x, y, theta).
 """
 
@@ -28,10 +28,10 @@ import trimesh
 
 from ibr.camera import Camera, rigid
 from ibr.errors import InputError
-from ibr.normals import estimate_normals, remove_outliers
-from ibr.poisson import PoissonConfig, poisson_mesh
-from ibr.sfm import colmap_errors_only
-from ibr.triangulation import TriangulationConfig, pair_tracks
+from ibr.proxy.normals import estimate_normals, remove_outliers
+from ibr.proxy.poisson import PoissonConfig, poisson_mesh
+from ibr.proxy.sfm import colmap_errors_only
+from ibr.proxy.triangulation import TriangulationConfig, pair_tracks
 
 
 class MapError(InputError):
@@ -90,7 +90,7 @@ def stereo_pairs(cameras: list[Camera], k: int, min_baseline_m: float = 0.25,
     """(P, 2) index pairs i < j: each camera with its k nearest others among those at least
     `min_baseline_m` away whose optical axes differ less than `max_axis_angle_rad`. A robot's
     circles of photos share a centre up to the mount offset, so the plain nearest views
-    (`ibr.triangulation.neighbour_pairs`) would be stereo pairs with no baseline."""
+    (`ibr.proxy.triangulation.neighbour_pairs`) would be stereo pairs with no baseline."""
     C = np.array([c.center for c in cameras]).reshape(-1, 3)
     F = np.array([c.forward for c in cameras]).reshape(-1, 3)
     dist = np.linalg.norm(C[:, None] - C[None], axis=2)

@@ -7,7 +7,7 @@ random distance before the next circle. It does not avoid obstacles: on a bumper
 motor stall the bumper missed, it backs up, turns a random angle and drives on.
 
 No localisation or mapping happens during this stage (bundle adjustment recovers the photos'
-poses afterwards, `robot.initial_map`); the pose attached to each photo is compass-aided
+poses afterwards, `robot.mission.map_building`); the pose attached to each photo is compass-aided
 dead reckoning (`localization.dead_reckoning`), used only to fix the map's scale and heading.
 Frames: world SE(2) poses (x, y, theta), metres and radians.
 """

@@ -1,5 +1,5 @@
 """The mission's product: a virtual tour of the captured place, rendered by unstructured
-lumigraph rendering (`ibr.ulr`, as Foster, Wang & Grupen render theirs) from the posed photos
+lumigraph rendering (`ibr.render.ulr`, as Foster, Wang & Grupen render theirs) from the posed photos
 over the final map's Poisson mesh. The tour flies a camera at the robot's camera height
 along a smooth closed curve through the places the robot photographed from.
 Frames: world metres; cameras are `ibr.camera.Camera`.
@@ -47,7 +47,7 @@ def render_tour(cameras: list[Camera], images: list[np.ndarray], mesh: trimesh.T
                 size: tuple[int, int], cam_from_robot: np.ndarray, ctx=None) -> list[tuple[Camera, np.ndarray]]:
     """ULR frames (camera, (H, W, 3) uint8) of the robot camera at SE(2) `poses` (N, 3), at
     `size` (w, h) with the sources' field of view, from the posed photos."""
-    from ibr.ulr import UlrRenderer
+    from ibr.render.ulr import UlrRenderer
 
     scene = Scene("mission", [View(c, im) for c, im in zip(cameras, images)])
     s = size[0] / cameras[0].width

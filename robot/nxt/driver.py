@@ -3,7 +3,7 @@ driven from the host over the brick's Bluetooth serial port (pyserial).
 
 Three layers: `NXTLink` moves frames over the port (timeouts, retries, reconnect when the
 port disappears, resynchronisation after garbage); `NXTBrick` speaks the direct commands
-(`robot.nxt_protocol`); `NXTRobot` is the robot (implements `robot.protocol.Robot`): a
+(`robot.nxt.protocol`); `NXTRobot` is the robot (implements `robot.protocol.Robot`): a
 differential drive on motors B (left) and C (right) with odometry from their rotation
 counts, touch bumpers, the LEGO ultrasonic and HiTechnic compass on I2C, and the camera
 shutter on motor port A. Every motion is sent with a tacho limit, so the brick stops the
@@ -24,7 +24,7 @@ import serial
 
 from ibr.camera import intrinsics_from_fov
 from ibr.errors import InputError
-from robot import nxt_protocol as P
+from robot.nxt import protocol as P
 from robot.protocol import MotionResult, Photo, forward_camera_mount
 
 

@@ -2,7 +2,7 @@
 
 `NXTEmulator` opens a pty (`os.openpty`) and answers LEGO direct commands on it the way
 the brick does over Bluetooth (2-byte length header, reply type 0x02, opcode echo, status
-byte; see `robot.nxt_protocol`). It simulates Foster et al.'s robot (section III): two
+byte; see `robot.nxt.protocol`). It simulates Foster et al.'s robot (section III): two
 wheel motors (B left, C right) of a differential drive in a rectangular room, front and
 rear touch bumpers (sensor ports 1, 2), the LEGO ultrasonic (port 3) and the HiTechnic
 compass (port 4) on I2C, and a camera whose shutter fires when motor port A is powered
@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from robot import nxt_protocol as P
+from robot.nxt import protocol as P
 
 
 @dataclass(frozen=True)

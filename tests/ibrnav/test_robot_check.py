@@ -3,15 +3,12 @@ is one clear error line, no traceback."""
 
 import pytest
 
-import ibrnav.cli as cli
-from robot import cli_robot
+from ibrnav.cli import main
 
 
 @pytest.fixture()
-def ibrnav(monkeypatch):
-    if cli_robot not in cli.PACKAGE_CLIS:
-        monkeypatch.setattr(cli, "PACKAGE_CLIS", cli.PACKAGE_CLIS + (cli_robot,))
-    return cli.main
+def ibrnav():
+    return main
 
 
 def test_check_reports_battery_sensors_and_motor_pulse(ibrnav, capsys):

@@ -4,18 +4,19 @@ import json
 
 import pytest
 
-from explore.scenic_cli import ScenicInputError, main, parse_scene
 from ibr.errors import InputError
+from ibr.scene import SceneError
+from ibrnav.commands.scenic import ScenicInputError
 
 TINY = ["--frames", "2", "--width", "160", "--height", "120", "--particles", "40",
         "--nodes", "40", "--gt-samples", "2000"]
 
 
 @pytest.mark.parametrize("agents,planner,matcher", [(2, "scenic", "dense"), (1, "rrtstar", "sift")])
-def test_tiny_run_writes_metrics(tmp_path, agents, planner, matcher):
+def test_tiny_run_writes_metrics(ibrnav_command, tmp_path, agents, planner, matcher):
     out, rrd = tmp_path / "scenic.json", tmp_path / "scenic.rrd"
-    assert main(["synthetic:office", "--agents", str(agents), "--planner", planner, "--seed", "1",
-                 "--matcher", matcher, "--json", str(out), "--save", str(rrd), *TINY]) == 0
+    assert ibrnav_command("scenic", "synthetic:office", "--agents", agents, "--planner", planner, "--seed", 1,
+                          "--matcher", matcher, "--json", out, "--save", rrd, *TINY) == 0
     result = json.loads(out.read_text())
     assert set(result) == {"per_frame", "final"}
     frames = result["per_frame"]
@@ -30,11 +31,13 @@ def test_tiny_run_writes_metrics(tmp_path, agents, planner, matcher):
     assert rrd.stat().st_size > 10_000  # the recording is flushed before the command returns
 
 
-def test_bad_arguments_are_input_errors():
-    with pytest.raises(ScenicInputError, match="synthetic:NAME"):
-        parse_scene("strecha:/nowhere")
-    assert issubclass(ScenicInputError, InputError)
+def test_bad_arguments_are_input_errors(ibrnav_command, tmp_path):
+    rrd = tmp_path / "x.rrd"
+    for scene in ("strecha:/nowhere", "synthetic:nosuch", "synthetic:office?seed=x"):
+        with pytest.raises(SceneError, match="synthetic:NAME|bad query"):
+            ibrnav_command("scenic", scene, "--save", rrd, *TINY)
+    assert issubclass(ScenicInputError, InputError) and issubclass(SceneError, InputError)
     with pytest.raises(ScenicInputError, match="--agents"):
-        main(["synthetic:office", "--agents", "3", *TINY])
+        ibrnav_command("scenic", "synthetic:office", "--agents", "3", *TINY)
     with pytest.raises(ScenicInputError, match="--gamma"):
-        main(["synthetic:office", "--gamma", "1.5", *TINY])
+        ibrnav_command("scenic", "synthetic:office", "--gamma", "1.5", *TINY)

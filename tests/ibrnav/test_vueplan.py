@@ -1,26 +1,17 @@
 """`ibrnav vueplan` end to end on a coarse courtyard (small flags)."""
 
-import argparse
 import json
 
 import pytest
 
-from explore import vueplan_cli
 from ibr.errors import InputError
 
 
-def _parse(argv):
-    parser = argparse.ArgumentParser()
-    vueplan_cli.register(parser.add_subparsers(dest="command"))
-    return parser.parse_args(argv)
-
-
-def test_vueplan_cli_writes_json_and_table(tmp_path, capsys, gl_ctx):
+def test_vueplan_cli_writes_json_and_table(ibrnav_command, tmp_path, capsys, gl_ctx):
     out = tmp_path / "vp.json"
-    args = _parse(["vueplan", "synthetic:courtyard", "--candidates", "200", "--voxel", "1.0",
+    assert ibrnav_command(*["vueplan", "synthetic:courtyard", "--candidates", "200", "--voxel", "1.0",
                    "--scan-resolution", "2", "--threshold", "5", "--max-nbv", "2",
-                   "--surface-samples", "2000", "--json", str(out), "--save", str(tmp_path / "vp.rrd")])
-    assert args.func(args) == 0
+                   "--surface-samples", "2000", "--json", str(out), "--save", str(tmp_path / "vp.rrd")]) == 0
     res = json.loads(out.read_text())
     assert res["phase1"]["views"] >= 2 and res["phase1"]["boundary_coverage"] >= 0.95
     assert res["tour_length_m"] > 0
@@ -34,28 +25,25 @@ def test_vueplan_cli_writes_json_and_table(tmp_path, capsys, gl_ctx):
     assert (tmp_path / "vp.rrd").stat().st_size > 0
 
 
-def test_vueplan_cli_phase1_only_with_floorplan(tmp_path, gl_ctx):
+def test_vueplan_cli_phase1_only_with_floorplan(ibrnav_command, tmp_path, gl_ctx):
     from ibr.synthetic import make_world
     world = make_world("courtyard")
     mesh_path, plan_path = tmp_path / "site.ply", tmp_path / "site.wkt"
     world.mesh.export(mesh_path)
     plan_path.write_text(world.free_space.wkt)
     out = tmp_path / "p1.json"
-    args = _parse(["vueplan", str(mesh_path), "--floorplan", str(plan_path), "--phase1-only",
-                   "--candidates", "200", "--json", str(out), "--save", str(tmp_path / "p1.rrd")])
-    assert args.func(args) == 0
+    assert ibrnav_command(*["vueplan", str(mesh_path), "--floorplan", str(plan_path), "--phase1-only",
+                   "--candidates", "200", "--json", str(out), "--save", str(tmp_path / "p1.rrd")]) == 0
     res = json.loads(out.read_text())
     assert res["phase2"] == [] and res["phase1"]["boundary_coverage"] >= 0.95
 
 
-def test_vueplan_cli_bad_site(tmp_path):
+def test_vueplan_cli_bad_site(ibrnav_command, tmp_path):
     for site in ("synthetic:nowhere", str(tmp_path / "missing.obj")):
-        args = _parse(["vueplan", site, "--save", str(tmp_path / "x.rrd")])
         with pytest.raises(InputError, match="nowhere|missing"):
-            args.func(args)
-    args = _parse(["vueplan", "synthetic:courtyard", "--voxel", "0", "--save", str(tmp_path / "x.rrd")])
+            ibrnav_command(*["vueplan", site, "--save", str(tmp_path / "x.rrd")])
     with pytest.raises(InputError, match="--voxel"):
-        args.func(args)
+        ibrnav_command(*["vueplan", "synthetic:courtyard", "--voxel", "0", "--save", str(tmp_path / "x.rrd")])
 
 
 @pytest.mark.parametrize("wkt,match", [
@@ -63,13 +51,12 @@ def test_vueplan_cli_bad_site(tmp_path):
     # two separate yards: views that the roadmap cannot join
     ("MULTIPOLYGON (((0 0, 10 0, 10 10, 0 10, 0 0), (4 4, 6 4, 6 6, 4 6, 4 4)),"
      " ((20 0, 30 0, 30 10, 20 10, 20 0), (24 4, 26 4, 26 6, 24 6, 24 4)))", "cannot be reached")])
-def test_vueplan_cli_unusable_floor_plans(tmp_path, wkt, match):
+def test_vueplan_cli_unusable_floor_plans(ibrnav_command, tmp_path, wkt, match):
     from ibr.synthetic import make_world
     mesh_path, plan_path = tmp_path / "site.ply", tmp_path / "site.wkt"
     make_world("courtyard").mesh.export(mesh_path)
     plan_path.write_text(wkt)
     # no overlap constraint, so the greedy cover takes views in both yards
-    args = _parse(["vueplan", str(mesh_path), "--floorplan", str(plan_path), "--phase1-only",
-                   "--overlap", "0", "--candidates", "100", "--save", str(tmp_path / "x.rrd")])
     with pytest.raises(InputError, match=match):
-        args.func(args)
+        ibrnav_command(*["vueplan", str(mesh_path), "--floorplan", str(plan_path), "--phase1-only",
+                         "--overlap", "0", "--candidates", "100", "--save", str(tmp_path / "x.rrd")])

@@ -3,7 +3,7 @@ import pytest
 import shapely
 from filterpy.monte_carlo import systematic_resample
 
-from localization.particle_filter import (ParticleFilter, ParticleFilterConfig, _numpy_random_from,
+from localization.particle_filter import (ParticleFilter, ParticleFilterConfig, numpy_random_from,
                                           effective_sample_size,
                                           kld_sample_count, sample_free_poses, weighted_estimate)
 
@@ -37,9 +37,9 @@ def test_filterpy_resampling_is_reproducible_from_the_generator():
     w = np.random.default_rng(0).random(100)
     w /= w.sum()
     state = np.random.get_state()[1].copy()
-    with _numpy_random_from(np.random.default_rng(5)):
+    with numpy_random_from(np.random.default_rng(5)):
         a = systematic_resample(w)
-    with _numpy_random_from(np.random.default_rng(5)):
+    with numpy_random_from(np.random.default_rng(5)):
         b = systematic_resample(w)
     np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(np.random.get_state()[1], state)  # global state untouched

@@ -100,7 +100,7 @@ def test_fountain_textured_proxy_likelihood_peaks_sharply_at_the_true_pose(strec
     """Leave-one-out on fountain-P11 (0005 held out): poses 0.3 m / 3 deg off the truth
     (every axis, both signs) cost clearly more than the truth with the photo-textured proxy,
     by several times the margin the vertex-coloured proxy gives."""
-    from ibr.proxy_geometry import build_proxy
+    from ibr.proxy.proxy_geometry import build_proxy
     from ibr.scene import load_scene
     from localization.lean_model import lean_mesh
     from localization.pose6_filter import Pose6Filter, Pose6FilterConfig, apply_offsets, particles_from_cam_from_world

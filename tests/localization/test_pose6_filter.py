@@ -6,7 +6,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from ibr.scene import load_scene
-from localization.eval_loc import LocConfig, SceneLocalizer, draw_prior
+from localization.eval import draw_prior
+from localization.localize import LocConfig, SceneLocalizer
 from localization.feature_localizer import PnPResult, pose_errors
 from localization.hybrid import HybridConfig, localize_hybrid
 from localization.pose6_filter import (Pose6Filter, Pose6FilterConfig, PriorBox, annealing_temperature, apply_offsets,

@@ -3,9 +3,9 @@ the session, which loads as a Scene."""
 
 import numpy as np
 
-from robot.capture_mission import run_capture_mission
-from robot.nxt import LinkConfig, NXTRobot, NXTRobotConfig
-from robot.nxt_emulator import EmulatorConfig, NXTEmulator
+from robot.drive import run_drive
+from robot.nxt.driver import LinkConfig, NXTRobot, NXTRobotConfig
+from robot.nxt.emulator import EmulatorConfig, NXTEmulator
 from robot.photo_source import FolderPhotoSource
 from robot.session import CaptureSession, load_session_scene
 from robot.waypoint_follower import FollowerConfig
@@ -22,7 +22,7 @@ def test_nxt_mission_writes_a_session_that_loads_as_a_scene(tmp_path):
             NXTRobot(emu.port, config, FolderPhotoSource(card), LinkConfig(timeout_s=0.3)) as robot, \
             CaptureSession.create(tmp_path / "session", robot.intrinsics, robot.image_size,
                                   robot.cam_from_robot) as session:
-        legs = list(run_capture_mission(robot, session, square, start, seed=0,
+        legs = list(run_drive(robot, session, square, start, seed=0,
                                         config=FollowerConfig(max_legs=5)))
         final_true = emu.pose.copy()
     assert len(legs) == 5 and emu.shots == 5
@@ -49,6 +49,6 @@ def test_drive_drives_the_emulated_nxt_into_a_session(tmp_path):
     assert run.returncode == 0, run.stderr
     assert "3 photos" in run.stdout
     assert len(load_session_scene(tmp_path / "s")) == 3
-    bad = subprocess.run([ibrnav, "drive", "--robot", "nxt:" + str(tmp_path / "rfcomm0"), "--photos", str(tmp_path),
+    bad = subprocess.run([ibrnav, "drive", "--robot", "nxt:" + str(tmp_path / "rfcomm0"), "--photo-dir", str(tmp_path),
                           "--save", str(tmp_path / "e.rrd")], capture_output=True, text=True, timeout=300)
     assert bad.returncode == 2 and "rfcomm0" in bad.stderr and "Traceback" not in bad.stderr

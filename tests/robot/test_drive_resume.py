@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from robot.capture_mission import run_capture_mission
+from robot.drive import run_drive
 from robot.session import KILL_ENV, CaptureSession
 from robot.sim_robot import SimRobot, SimRobotConfig
 from robot.waypoint_follower import FollowerConfig
@@ -84,7 +84,7 @@ def test_stopping_between_legs_and_resuming_in_process_is_seamless(tmp_path, off
         robot = SimRobot(office, SimRobotConfig(image_size=(24, 16)), np.random.default_rng(5), start_pose=start)
         with CaptureSession.open_or_create(folder, robot.intrinsics, robot.image_size, robot.cam_from_robot,
                                            rollback=True) as s:
-            for i, leg in enumerate(run_capture_mission(robot, s, route, start, 5, FollowerConfig(max_legs=5))):
+            for i, leg in enumerate(run_drive(robot, s, route, start, 5, FollowerConfig(max_legs=5))):
                 if stop_after is not None and i + 1 == stop_after:
                     break
         return robot

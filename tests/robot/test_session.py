@@ -115,21 +115,26 @@ def test_bad_folders_are_clear_errors(tmp_path):
 WRITER = textwrap.dedent("""
     import sys
     import numpy as np
-    sys.path.insert(0, {tests!r})
-    from test_session import K, MOUNT, fill
+    from ibr.camera import intrinsics_from_fov
+    from robot.protocol import Photo, forward_camera_mount
     from robot.session import CaptureSession
+    K, MOUNT = intrinsics_from_fov(60, 32, 24), forward_camera_mount(0.3)  # as K, MOUNT above
+    def photo(i):  # as photo() above
+        img = np.zeros((24, 32, 3), np.uint8)
+        img[..., 0], img[..., 1] = i, np.arange(32)[None, :]
+        return Photo(img, 0.5 * i, np.array([0.1 * i, 0.0, 0.0]), 0.01 * i, 1.0 + i, i)
     with CaptureSession.open_or_create(sys.argv[1], K, (32, 24), MOUNT, rollback=True) as s:
         done = s.last_commit["step"] + 1 if s.last_commit else 0
         for i in range(done, 4):
             s.append("sensor", step=i, range_m=1.0 + i)
-            s.add_photo(__import__("test_session").photo(i), pose=np.array([0.1 * i, 0.2, 0.3 * i]), step=i)
-            s.commit(i, {{"i": i}})
+            s.add_photo(photo(i), pose=np.array([0.1 * i, 0.2, 0.3 * i]), step=i)
+            s.commit(i, {"i": i})
 """)
 
 
 @pytest.mark.parametrize("stage", ["image", "photo", "log"])
 def test_killed_writer_resumes_with_nothing_lost_or_duplicated(tmp_path, stage):
-    script = WRITER.format(tests=os.path.dirname(__file__))
+    script = WRITER
     ref, run = tmp_path / "ref", tmp_path / "run"
     subprocess.run([sys.executable, "-c", script, str(ref)], check=True, timeout=60)
     env = dict(os.environ, **{KILL_ENV: f"4:{stage}"})  # record 4 is step 1's photo

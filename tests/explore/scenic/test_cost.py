@@ -4,9 +4,9 @@ uncertainty axis, γ for rays that meet nothing observed, C_view the ray mean.""
 import numpy as np
 import pytest
 
-from explore.scenic_cost import NBVConfig, first_occupied, point_cost, pose_rays, too_near, view_costs
-from explore.scenic_map import EMPTY, MapConfig, ScenicMap
-from explore.scenic_pose import CameraModel
+from explore.scenic.cost import NBVConfig, first_occupied, point_cost, pose_rays, too_near, view_costs
+from explore.scenic.map import EMPTY, MapConfig, ScenicMap
+from explore.scenic.pose import CameraModel
 
 MODEL = CameraModel(64, 48, 60.0, pitch_rad=0.0)
 

@@ -4,9 +4,9 @@ lookup with information-form fusion, free-space carving, triangulation covarianc
 import numpy as np
 import pytest
 
-from explore.scenic_map import EMPTY, OCCUPIED, UNOBSERVED, MapConfig, ScenicMap
-from explore.scenic_pose import CameraModel, camera_at
-from explore.scenic_reconstruction import (StereoConfig, reconstruct_pair, triangulate,
+from explore.scenic.map import EMPTY, OCCUPIED, UNOBSERVED, MapConfig, ScenicMap
+from explore.scenic.pose import CameraModel, camera_at
+from explore.scenic.reconstruction import (StereoConfig, reconstruct_pair, triangulate,
                                            triangulation_covariance)
 
 

@@ -5,12 +5,12 @@ import numpy as np
 import pytest
 import shapely
 
-from explore.scenic_baselines import PRMConfig, RRTStarConfig, plan_prm, plan_rrt_star
-from explore.scenic_collab import COLLABORATIVE, SFM, plan_agents
-from explore.scenic_map import EMPTY, OCCUPIED, MapConfig, ScenicMap
-from explore.scenic_planner import PlannerConfig, grow_scenic_tree
-from explore.scenic_pose import pose_distance
-from explore.scenic_workspace import Workspace, segments_free
+from explore.scenic.baselines import PRMConfig, RRTStarConfig, plan_prm, plan_rrt_star
+from explore.scenic.collab import COLLABORATIVE, SFM, plan_agents
+from explore.scenic.map import EMPTY, OCCUPIED, MapConfig, ScenicMap
+from explore.scenic.planner import PlannerConfig, grow_scenic_tree
+from explore.scenic.pose import pose_distance
+from explore.scenic.workspace import Workspace, segments_free
 
 WS = Workspace(shapely.box(-3, -3, 3, 3), 0.8, 1.6, clearance_m=0.1)
 CFG = PlannerConfig(step_m=0.5, max_nodes=300, pitch_rad=0.0)

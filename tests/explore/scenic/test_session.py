@@ -3,10 +3,10 @@ frame reconstructs, for the collaborative and the SfM decision."""
 
 import numpy as np
 
-from explore.scenic_collab import COLLABORATIVE, SFM
-from explore.scenic_pose import CameraModel
-from explore.scenic_session import ScenicSession, SessionConfig
-from explore.scenic_smc import SMCConfig
+from explore.scenic.collab import COLLABORATIVE, SFM
+from explore.scenic.pose import CameraModel
+from explore.scenic.session import ScenicSession, SessionConfig
+from explore.scenic.smc import SMCConfig
 
 CONFIG = SessionConfig(agents=2, gt_samples=2000, camera=CameraModel(160, 120, 60.0),
                        smc=SMCConfig(n_particles=40))

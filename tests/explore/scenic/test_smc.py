@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 import shapely
 
-from explore.scenic_cost import NBVConfig
-from explore.scenic_map import EMPTY, OCCUPIED, MapConfig, ScenicMap
-from explore.scenic_pose import CameraModel
-from explore.scenic_smc import CostSpace, SMCConfig, resample, sample_uniform, weights
-from explore.scenic_workspace import Workspace
+from explore.scenic.cost import NBVConfig
+from explore.scenic.map import EMPTY, OCCUPIED, MapConfig, ScenicMap
+from explore.scenic.pose import CameraModel
+from explore.scenic.smc import CostSpace, SMCConfig, resample, sample_uniform, weights
+from explore.scenic.workspace import Workspace
 
 WS = Workspace(shapely.box(-2, -2, 2, 2), 0.5, 1.5)
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from explore.scenic_stereo import StereoCostConfig, ray_intersection, stereo_cost, stereo_terms
+from explore.scenic.stereo import StereoCostConfig, ray_intersection, stereo_cost, stereo_terms
 
 ALPHA = 3.0
 CFG = StereoCostConfig(alpha=ALPHA)

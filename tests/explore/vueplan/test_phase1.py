@@ -6,7 +6,7 @@ import pytest
 import shapely
 
 from explore.floorplan import FloorPlan
-from explore.vueplan_phase1 import (Phase1Config, VisibilityPolygons, clip_to_field_of_view,
+from explore.vueplan.phase1 import (Phase1Config, VisibilityPolygons, clip_to_field_of_view,
                                     clip_to_grazing_angle, clip_to_range, greedy_cover,
                                     obstacle_edges, plan_phase1)
 from ibr.synthetic import make_world

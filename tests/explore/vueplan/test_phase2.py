@@ -6,13 +6,13 @@ import pytest
 import shapely
 
 from explore.floorplan import FloorPlan
-from explore.voxel_grid import (EMPTY, OCCUPIED, UNSEEN, VoxelGrid, boundary_unseen, insert_scan,
+from explore.vueplan.voxel_grid import (EMPTY, OCCUPIED, UNSEEN, VoxelGrid, boundary_unseen, insert_scan,
                                 ray_voxels, segments_clear, blocker_distance)
-from explore.voxel_occlusion import VoxelOccluder, blocker_faces
-from explore.vueplan_phase1 import Phase1Config, plan_phase1
-from explore.vueplan_phase2 import (Phase2Config, SurfaceCoverage, count_visible, count_visible_per_ray,
+from explore.vueplan.voxel_occlusion import VoxelOccluder, blocker_faces
+from explore.vueplan.phase1 import Phase1Config, plan_phase1
+from explore.vueplan.phase2 import (Phase2Config, SurfaceCoverage, count_visible, count_visible_per_ray,
                                     ground_candidates, plan_phase2)
-from ibr.scan_simulator import ScanConfig, simulate_scan
+from explore.vueplan.scan_simulator import ScanConfig, simulate_scan
 from ibr.synthetic import make_world
 
 

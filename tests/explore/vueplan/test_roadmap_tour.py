@@ -6,9 +6,9 @@ import shapely
 from scipy.sparse.csgraph import connected_components
 
 from explore.floorplan import FloorPlan
-from explore.roadmap import build_roadmap, path_is_free, shortest_paths
-from explore.tour import plan_tour, solve_tsp
-from explore.vueplan_phase1 import Phase1Config, plan_phase1
+from explore.vueplan.roadmap import build_roadmap, path_is_free, shortest_paths
+from explore.vueplan.tour import plan_tour, solve_tsp
+from explore.vueplan.phase1 import Phase1Config, plan_phase1
 from ibr.synthetic import make_world
 
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from ibr.scan_simulator import ScanConfig, simulate_scan, window_cameras, window_ownership
+from explore.vueplan.scan_simulator import ScanConfig, simulate_scan, window_cameras, window_ownership
 from ibr.synthetic import make_world
 
 WINDOW_LIM = np.tan(np.radians(30))

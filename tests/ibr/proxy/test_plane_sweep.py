@@ -6,35 +6,23 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
-from PIL import Image
 
 from ibr.camera import Camera, intrinsics_from_fov
 from ibr.mesh_renderer import MeshRenderer
-from ibr.plane_sweep import PlaneSweep, PlaneSweepConfig, consistency_filter
+from ibr.proxy.plane_sweep import PlaneSweep, PlaneSweepConfig, consistency_filter
 from ibr.scene import Scene, View
 
 W, H = 160, 120
 
 
-def _textured(mesh: trimesh.Trimesh, seed: int) -> trimesh.Trimesh:
-    """`mesh` with a random blocky texture mapped by its x and z coordinates."""
-    rng = np.random.default_rng(seed)
-    tex = np.kron(rng.integers(0, 256, (48, 48, 3)), np.ones((6, 6, 1))).astype(np.uint8)
-    v = mesh.vertices
-    uv = (v[:, [0, 2]] - v[:, [0, 2]].min(0)) / np.ptp(v[:, [0, 2]], axis=0).max()
-    material = trimesh.visual.material.SimpleMaterial(image=Image.fromarray(tex))
-    return trimesh.Trimesh(v, mesh.faces, visual=trimesh.visual.TextureVisuals(uv, material=material),
-                           process=False)
-
-
 @pytest.fixture(scope="module")
-def stereo_scene(gl_ctx):
+def stereo_scene(gl_ctx, textured):
     """A textured wall 6 m ahead and a textured box 3-3.6 m ahead, seen by 4 cameras 0.3 m apart."""
     wall = trimesh.creation.box((12, 0.1, 8))
     wall.apply_translation((0, 6, 0))
     box = trimesh.creation.box((1.2, 0.6, 1.0))
     box.apply_translation((0.2, 3.3, -0.2))
-    world = trimesh.util.concatenate([_textured(wall, 0), _textured(box.subdivide().subdivide(), 1)])
+    world = trimesh.util.concatenate([textured(wall, 0), textured(box.subdivide().subdivide(), 1)])
     K = intrinsics_from_fov(55, W, H)
     cams = [Camera.look_at((x, 0, 0), (x, 6, 0), K, W, H, name=f"c{i}")
             for i, x in enumerate((-0.45, -0.15, 0.15, 0.45))]
@@ -71,7 +59,7 @@ def test_consistency_filter_rejects_disagreeing_depths(stereo_scene):
 
 
 def test_dense_points_lie_on_the_surface(gl_ctx, stereo_scene):
-    from ibr.dense_points import DenseConfig, dense_points
+    from ibr.proxy.dense_points import DenseConfig, dense_points
 
     scene, true = stereo_scene
     cam = scene.cameras[1]

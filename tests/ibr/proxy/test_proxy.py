@@ -10,13 +10,13 @@ import pytest
 import trimesh
 
 from ibr.camera import Camera, intrinsics_from_fov
-from ibr.depth_maps import render_depth_maps
-from ibr.hole_filling import push_pull
-from ibr.normals import estimate_normals, remove_outliers
-from ibr.poisson import MeshingError, PoissonConfig, poisson_mesh
-from ibr.proxy_geometry import ProxyConfig, build_proxy, cache_dir, triangulated_points
+from ibr.render.depth_maps import render_depth_maps
+from ibr.render.hole_filling import push_pull
+from ibr.proxy.normals import estimate_normals, remove_outliers
+from ibr.proxy.poisson import MeshingError, PoissonConfig, poisson_mesh
+from ibr.proxy.proxy_geometry import ProxyConfig, build_proxy, cache_dir, triangulated_points
 from ibr.scene import load_scene
-from ibr.triangulation import (fundamental_matrix, neighbour_pairs, sampson_distance,
+from ibr.proxy.triangulation import (fundamental_matrix, neighbour_pairs, sampson_distance,
                                triangulate_pair, TriangulationConfig)
 
 

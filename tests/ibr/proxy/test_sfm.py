@@ -8,7 +8,7 @@ import pytest
 from PIL import Image
 
 from ibr.scene import load_scene
-from ibr.sfm import SfmError, load_unposed
+from ibr.proxy.sfm import SfmError, load_unposed
 
 
 def _normalised_distances(centres: np.ndarray) -> np.ndarray:
@@ -31,16 +31,9 @@ def test_sfm_recovers_the_strecha_camera_layout(strecha_dir, tmp_path):
     assert load_scene(tmp_path).cameras[0].width == 384     # the folder is now a COLMAP project
 
 
-def test_sfm_without_photos_names_the_folder(tmp_path):
-    import argparse
-
-    from ibr import render_cli
-
+def test_sfm_without_photos_names_the_folder(tmp_path, ibrnav_command):
     (tmp_path / "images").mkdir()
     with pytest.raises(SfmError, match="no photos"):
         load_unposed(tmp_path)
-    parser = argparse.ArgumentParser()
-    render_cli.register(parser.add_subparsers(dest="command"))
-    args = parser.parse_args(["sfm", str(tmp_path)])
     with pytest.raises(SfmError, match=str(tmp_path / "images")):
-        args.func(args)
+        ibrnav_command("sfm", tmp_path)

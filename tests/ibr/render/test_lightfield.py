@@ -9,8 +9,8 @@ import trimesh
 from PIL import Image
 
 from ibr.camera import Camera, intrinsics_from_fov
-from ibr.eval_ibr import psnr
-from ibr.lightfield import (LightFieldConfig, LightFieldRenderer, camera_net, focal_plane,
+from ibr.render.eval import psnr
+from ibr.render.lightfield import (LightFieldConfig, LightFieldRenderer, camera_net, focal_plane,
                             plane_through, subdivide)
 from ibr.mesh_renderer import MeshRenderer
 from ibr.scene import Scene, View
@@ -149,13 +149,11 @@ def test_blending_weights_ramp_like_gouraud_over_the_net(gl_ctx, wall_scene):
 
 
 @pytest.fixture(scope="module")
-def wall_and_box_scene(gl_ctx):
+def wall_and_box_scene(gl_ctx, textured):
     """The wall scene with a textured box 3 m in front of the cameras, half-way to the wall."""
-    from tests.ibr.test_plane_sweep import _textured
-
     box = trimesh.creation.box((1.6, 0.8, 1.2))
     box.apply_translation((0.3, 3.0, 0.0))
-    world = trimesh.util.concatenate([_textured_wall(), _textured(box.subdivide().subdivide(), 1)])
+    world = trimesh.util.concatenate([_textured_wall(), textured(box.subdivide().subdivide(), 1)])
     renderer = MeshRenderer(world, gl_ctx)
     cams = [_camera(x, z, name=f"c{i}") for i, (x, z) in
             enumerate((x, z) for x in (-0.6, 0.0, 0.6) for z in (-0.4, 0.0, 0.4))]

@@ -1,4 +1,4 @@
-"""Issue 3's done-when on real photos, one held-out view: on fountain-P11 with 0005.jpg left
+"""The renderers on real photos, one held-out view: on fountain-P11 with 0005.jpg left
 out, ULR rendered at its true camera beats the nearest-view baseline and the single-plane
 light field (leave-one-out over all views: `ibrnav eval-ibr`). The proxy is built from the
 other ten photos and cached beside the data, so only the first run pays for it."""
@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ibr.eval_ibr import make_renderers, proxy_mesh, psnr
+from ibr.render.eval import make_renderers, proxy_mesh, psnr
 from ibr.scene import load_scene
 
 pytestmark = pytest.mark.realdata

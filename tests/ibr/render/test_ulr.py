@@ -8,11 +8,11 @@ import pytest
 import trimesh
 
 from ibr.camera import Camera, intrinsics_from_fov
-from ibr.eval_ibr import psnr
+from ibr.render.eval import psnr
 from ibr.mesh_renderer import MeshRenderer
-from ibr.nearest_view import NearestViewRenderer, nearest_source
+from ibr.render.nearest_view import NearestViewRenderer, nearest_source
 from ibr.scene import Scene, View, load_scene
-from ibr.ulr import UlrConfig, UlrRenderer, fill_depth_holes, k_nearest_weights, ulr_blend_numpy
+from ibr.render.ulr import UlrConfig, UlrRenderer, fill_depth_holes, k_nearest_weights, ulr_blend_numpy
 
 
 @pytest.fixture(scope="module")

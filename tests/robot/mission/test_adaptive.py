@@ -9,18 +9,12 @@ import shapely
 
 from explore.candidates import sample_candidates
 from ibr.synthetic import make_world
-from robot.adaptive_exploration import (
-    AdaptiveConfig,
-    AdaptiveMission,
-    MissionObserver,
-    MissionPhoto,
-    pick_goals,
-    start_filter,
-)
-from robot.coverage import surface_samples
-from robot.initial_map import RobotMap
+from robot.mission.adaptive import AdaptiveConfig, AdaptiveMission, pick_goals, start_filter
+from robot.mission.coverage import surface_samples
+from robot.mission.map_building import RobotMap
+from robot.mission.observer import MissionObserver, MissionPhoto
+from robot.mission.random_stage import Body, RandomExplorationConfig, random_exploration
 from robot.protocol import MotionResult, robot_camera
-from robot.random_exploration import Body, RandomExplorationConfig, random_exploration
 from robot.sim_robot import SimRobot, SimRobotConfig
 
 START = np.array([-1.5, -2.5, 0.0])

@@ -5,7 +5,7 @@ import pytest
 import trimesh
 
 from ibr.camera import Camera, intrinsics_from_fov
-from robot.coverage import CoverageConfig, CoverageTracker, coverage_curve, path_length
+from robot.mission.coverage import CoverageConfig, CoverageTracker, coverage_curve, path_length
 
 K = intrinsics_from_fov(90.0, 64, 64)
 

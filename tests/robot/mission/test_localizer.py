@@ -1,4 +1,4 @@
-"""The mission's particle filter (robot.mission_localizer) while a simulated robot follows a
+"""The mission's particle filter (robot.mission.localizer) while a simulated robot follows a
 path on the filter's own estimate: PnP-like fixes at the waypoints (the true pose plus known
 noise; every third one fails), odometry and compass between them."""
 
@@ -6,7 +6,7 @@ import numpy as np
 
 from ibr.synthetic import loop_route, make_world
 from localization.motion_models import wrap_angle
-from robot.mission_localizer import FilteredBody, MissionFilterConfig, MissionLocalizer
+from robot.mission.localizer import FilteredBody, MissionFilterConfig, MissionLocalizer
 from robot.sim_robot import SimRobot, SimRobotConfig
 
 

@@ -6,7 +6,7 @@ import shapely
 
 from ibr.synthetic import make_world
 from localization.motion_models import wrap_angle
-from robot.random_exploration import RandomExplorationConfig, random_exploration
+from robot.mission.random_stage import RandomExplorationConfig, random_exploration
 from robot.sim_robot import SimRobot, SimRobotConfig
 
 

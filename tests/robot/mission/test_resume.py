@@ -1,5 +1,5 @@
 """`ibrnav demo --session DIR` resumes a killed mission from its capture session: nothing
-lost, nothing duplicated (issue 8). The random stage is deterministic given the seed (a
+lost, nothing duplicated. The random stage is deterministic given the seed (a
 resumed run replays it to the same records and photos); the adaptive stage after a resume
 is not bit-identical to an uninterrupted run (COLMAP's SfM is not bit-reproducible), so
 the end-to-end test checks the plan: the photo budget, one record set per photo, one commit
@@ -14,9 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from robot.adaptive_exploration import MissionObserver, _random_stage
-from robot.mission_journal import SessionJournal
-from robot.random_exploration import RandomExplorationConfig
+from robot.mission.mission import run_random_stage
+from robot.mission.observer import MissionObserver
+from robot.mission.journal import SessionJournal
+from robot.mission.random_stage import RandomExplorationConfig
 from robot.session import KILL_ENV, CaptureSession, load_session_scene
 from robot.sim_robot import SimRobot, SimRobotConfig
 
@@ -98,7 +99,7 @@ def random_stage_into(folder: Path, robot: SimRobot, stop_after: int, replayable
                 s.add_photo(mp.photo, pose=mp.estimate, stage=mp.stage)
 
         try:
-            return _random_stage(robot, start, 30, cfg, np.random.default_rng(9), Write(stop_after),
+            return run_random_stage(robot, start, 30, cfg, np.random.default_rng(9), Write(stop_after),
                                  SessionJournal(s, robot, replayable=replayable))
         except Stop:
             return None

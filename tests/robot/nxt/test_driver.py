@@ -17,9 +17,9 @@ import pytest
 from nxt.brick import Brick
 
 from ibr.errors import InputError
-from robot import nxt_protocol as P
-from robot.nxt import LinkConfig, NXTRobot, NXTRobotConfig, RobotConnectionError
-from robot.nxt_emulator import EmulatorConfig, NXTEmulator
+from robot.nxt import protocol as P
+from robot.nxt.driver import LinkConfig, NXTRobot, NXTRobotConfig, RobotConnectionError
+from robot.nxt.emulator import EmulatorConfig, NXTEmulator
 from robot.photo_source import FolderPhotoSource, OpenCVPhotoSource
 from robot.protocol import Robot
 
@@ -263,11 +263,11 @@ def test_motors_stopped_when_the_with_block_raises(emu):
 def test_motors_stopped_at_interpreter_exit(tmp_path):
     script = textwrap.dedent("""
         import atexit, sys
-        from robot.nxt_emulator import NXTEmulator
+        from robot.nxt.emulator import NXTEmulator
         emu = NXTEmulator()
         atexit.register(lambda: print("running:", [m.running for m in emu.motors]))  # runs last
-        from robot.nxt import NXTRobot
-        from robot import nxt_protocol as P
+        from robot.nxt.driver import NXTRobot
+        from robot.nxt import protocol as P
         r = NXTRobot(emu.port)
         r.brick.set_output_state(1, 50, P.MODE_ON, 0, 0, P.RUN_RUNNING, 0)
         assert emu.motors[1].running

@@ -14,8 +14,8 @@ from nxt.backend.devfile import DevFileSock
 from nxt.telegram import CODES, Opcode as NxtOpcode, Telegram
 
 from ibr.errors import InputError
-from robot import nxt_protocol as P
-from robot.nxt_emulator import NXTEmulator
+from robot.nxt import protocol as P
+from robot.nxt.emulator import NXTEmulator
 
 M, S = nxt.motor, nxt.sensor
 

@@ -1,0 +1,21 @@
+"""The one progress bar of ibrnav: a tqdm on stderr, shown only when the package's logger
+would print INFO. Library code reports with `logging.getLogger(__name__)` and, for long
+loops, `progress(...)`; nothing is printed unless the application configures logging
+(`ibrnav` does, with -q / -v), so the packages stay quiet when used from Python."""
+
+from __future__ import annotations
+
+import logging
+import sys
+from collections.abc import Iterable
+
+from tqdm import tqdm
+
+
+def progress(iterable: Iterable, total: int | None = None, desc: str | None = None,
+             logger: logging.Logger | None = None) -> tqdm:
+    """`iterable` wrapped in a tqdm bar on stderr, disabled unless `logger` (default: the
+    `ibr` package logger, which `ibrnav` sets with the others) is enabled for INFO."""
+    log = logger or logging.getLogger("ibr")
+    return tqdm(iterable, total=total, desc=desc, file=sys.stderr, leave=False, dynamic_ncols=True,
+                disable=not log.isEnabledFor(logging.INFO))

@@ -1,0 +1,87 @@
+"""Flags that several commands share, defined once so they have one name and one meaning:
+the robot (`--robot sim|nxt:PORT`, its camera size, where an NXT's photos come from) for
+`drive` and `demo`, and the capture mission's budget and thresholds for `demo` and `explore`."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import tempfile
+
+import numpy as np
+
+from ibr.errors import InputError
+
+
+def add_robot_args(p: argparse.ArgumentParser) -> None:
+    """--robot, --width, --height, --photo-dir, --camera."""
+    p.add_argument("--robot", default="sim", help="'sim', or 'nxt:PORT' for a LEGO NXT on a serial port "
+                   "(nxt:emulator: the built-in emulated brick)")
+    p.add_argument("--width", type=int, default=320, help="camera image width (px)")
+    p.add_argument("--height", type=int, default=240, help="camera image height (px)")
+    p.add_argument("--photo-dir", default=None, help="with nxt: the folder the camera's photos arrive in")
+    p.add_argument("--camera", default=None, help="with nxt: an OpenCV capture device (index, file or pattern)")
+
+
+@contextlib.contextmanager
+def open_robot(args: argparse.Namespace, world, start: np.ndarray):
+    """The robot `--robot` names, placed at `start`; closed (motors stopped) on exit."""
+    from robot.sim_robot import SimRobot, SimRobotConfig
+
+    if args.robot == "sim":
+        config = SimRobotConfig(image_size=(args.width, args.height))
+        yield SimRobot(world, config, np.random.default_rng(args.seed), start_pose=start)
+        return
+    if not args.robot.startswith("nxt:") or args.robot == "nxt:":
+        raise InputError(f"--robot {args.robot!r}: use 'sim' or 'nxt:PORT' (e.g. nxt:/dev/rfcomm0, nxt:emulator)")
+    from robot.nxt.driver import NXTRobot, NXTRobotConfig
+    from robot.photo_source import FolderPhotoSource, OpenCVPhotoSource
+
+    port = args.robot[4:]
+    with contextlib.ExitStack() as stack:
+        photos_dir = args.photo_dir
+        if port == "emulator":
+            from robot.nxt.emulator import EmulatorConfig, NXTEmulator
+
+            photos_dir = photos_dir or stack.enter_context(tempfile.TemporaryDirectory(prefix="nxt_card_"))
+            x0, y0, x1, y1 = world.free_space.bounds
+            emu = stack.enter_context(NXTEmulator(
+                EmulatorConfig(time_scale=8.0, room_half_size_m=((x1 - x0) / 2, (y1 - y0) / 2),
+                               image_size=(args.width, args.height)), camera_dir=photos_dir, pose=tuple(start)))
+            port = emu.port
+        if args.camera is not None:
+            source = OpenCVPhotoSource(int(args.camera) if args.camera.isdigit() else args.camera)
+        elif photos_dir:
+            source = FolderPhotoSource(photos_dir)
+        else:
+            raise InputError("--robot nxt:PORT needs --photo-dir DIR (the camera card's folder) or --camera DEVICE")
+        yield stack.enter_context(NXTRobot(port, NXTRobotConfig(image_size=(args.width, args.height)), source))
+
+
+def add_mission_args(p: argparse.ArgumentParser, photos_default: int) -> None:
+    """--seed, --photos (the budget), --random-photos, --circle-step-deg, --max-rounds,
+    --goals-per-round, --min-gain-deg."""
+    p.add_argument("--seed", type=int, default=0, help="world, noise and planner seed")
+    p.add_argument("--photos", type=int, default=photos_default, help="photo budget of the model")
+    p.add_argument("--random-photos", type=int, default=100, help="photos of the random-exploration stage")
+    p.add_argument("--circle-step-deg", type=float, default=10.0,
+                   help="turn between the photos of a random-exploration circle (deg)")
+    p.add_argument("--max-rounds", type=int, default=6, help="most adaptive rounds (map rebuilds)")
+    p.add_argument("--goals-per-round", type=int, default=6, help="goals visited between map rebuilds")
+    p.add_argument("--min-gain-deg", type=float, default=3.0,
+                   help="stop when the best candidate's heuristic score (mean angle, deg) is below this")
+
+
+def mission_config(args: argparse.Namespace):
+    """The `AdaptiveConfig` of the mission flags."""
+    from robot.mission.adaptive import AdaptiveConfig
+
+    return AdaptiveConfig(max_rounds=args.max_rounds, goals_per_round=args.goals_per_round,
+                          min_gain_rad=np.radians(args.min_gain_deg))
+
+
+def random_config(args: argparse.Namespace):
+    """The `RandomExplorationConfig` of the mission flags."""
+    from robot.mission.random_stage import RandomExplorationConfig
+
+    return RandomExplorationConfig(circle_step_rad=np.radians(args.circle_step_deg))

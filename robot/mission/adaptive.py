@@ -1,0 +1,324 @@
+"""Adaptive exploration: the second stage of Foster, Wang & Grupen's scene capture (IV-B, IV-C).
+
+From the map of the photos so far (`robot.mission.map_building`), each round:
+1. slices the mesh at the camera height for the free-space boundary and samples random
+   candidate poses inside it (`explore.candidates`);
+2. scores all candidates in one batched pass of the rendering-quality heuristic
+   (`explore.view_quality.ViewQuality`: mean smallest angle between a pixel's desired ray
+   and the rays to the source photos that see its point; higher = more to gain);
+3. picks the best goals (greedy, spread apart) and stops when the best score is below
+   `AdaptiveConfig.min_gain_rad`;
+4. drives to each goal: a KDE navigation grid from the above-ground map points, A* and path
+   simplification (`explore.nav_grid`, `explore.path_simplify`); the robot follows the path by
+   target-node switching within `switch_m` on the estimate of an SE(2) particle filter
+   (`robot.mission.localizer`): odometry and compass between nodes, *vision* at the nodes
+   (SIFT + RANSAC PnP against the map, `localization.feature_localizer`, as a mixture
+   proposal), and an extra photo when the filter's spread grows too large: the plan
+   consumes the filter's estimate, never a simulator's truth. On an obstacle it
+   backs off, drives a little off the path and re-plans; after `max_obstacles` obstacles it
+   gives the goal up and takes the next;
+5. photographs at each goal, localises those photos, and rebuilds the map with them
+   (triangulation with the localised poses fixed, Poisson mesh).
+
+Algorithm code only: what happens is reported to a `MissionObserver`
+(`robot.mission.observer`); `robot.mission.mission.run_mission` runs the rounds. Frames: world SE(2) poses (x, y, theta), metres, radians.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from explore.candidates import free_space_from_mesh, sample_candidates
+from explore.nav_grid import NavGridConfig, nav_grid_from_points
+from explore.path_simplify import plan_path
+from explore.view_quality import ViewQuality, ViewQualityConfig
+from ibr.camera import Camera
+from ibr.proxy.triangulation import TriangulationConfig, sift_features
+from localization.feature_localizer import FeatureLocalizerConfig, FeatureMap
+from localization.motion_models import wrap_angle
+from robot.mission.localizer import FilteredBody, MissionFilterConfig, MissionLocalizer
+from robot.mission.map_building import MapConfig, RobotMap, extend_map, stereo_tracks
+from robot.mission.observer import MissionObserver, MissionPhoto
+from robot.mission.random_stage import Body
+from robot.protocol import Photo, Robot, robot_camera
+
+
+@dataclass(frozen=True)
+class AdaptiveConfig:
+    """Settings of the adaptive exploration."""
+
+    n_candidates: int = 300
+    """Random candidate poses scored per round."""
+    clearance_m: float = 0.35
+    """Candidates keep this distance from the free-space boundary (m)."""
+    goals_per_round: int = 6
+    """Goals visited between two map rebuilds."""
+    goal_separation_m: float = 0.8
+    """Two goals of a round are at least this far apart, or differ by 60 degrees in heading (m)."""
+    photos_per_goal: int = 2
+    """Photos taken at a goal: the goal view, then side-stepped copies (stereo baselines)."""
+    stereo_baseline_m: float = 0.6
+    """Side step between the photos of a goal (m): 0.6 m is 5 degrees of parallax at 6.9 m."""
+    min_gain_rad: float = 0.05
+    """Stop when the best candidate's score (mean angle, rad) is below this."""
+    max_rounds: int = 6
+    """Most rounds of goal selection and map rebuilding."""
+    switch_m: float = 0.3
+    """Target-node switching: a path node within this distance counts as passed (m)."""
+    reach_m: float = 0.15
+    """The goal counts as reached within this distance (m)."""
+    leg_m: float = 0.6
+    """Longest straight drive on dead reckoning before re-aiming (m)."""
+    max_obstacles: int = 5
+    """Obstacles on the way to a goal after which it is given up (the paper's k = 5)."""
+    backoff_m: float = 0.2
+    """How far to back up from an obstacle (m)."""
+    off_path_m: float = 0.3
+    """How far to drive off the path after an obstacle before re-planning (m)."""
+    max_legs_per_goal: int = 40
+    """Legs after which a goal is given up (a planner or localisation fault never loops forever)."""
+    max_path_cost: float = 0.35
+    """Grid cells with a (normalised) KDE cost above this are blocked for A*."""
+    max_fix_jump_m: float = 1.0
+    """A PnP fix farther than this from the dead-reckoning estimate is rejected (m)."""
+    max_fix_height_err_m: float = 0.15
+    """A PnP fix whose camera height is off by more than this is rejected (m)."""
+    grid: NavGridConfig = field(default_factory=lambda: NavGridConfig(z_floor_margin=0.08, z_max=1.2))
+    """Navigation grid (KDE of above-ground points)."""
+    view_quality: ViewQualityConfig = field(default_factory=ViewQualityConfig)
+    """Rendering-quality heuristic."""
+    localizer: FeatureLocalizerConfig = field(default_factory=lambda: FeatureLocalizerConfig(
+        triangulation=TriangulationConfig(n_features=1500, neighbours=4, max_epipolar_px=3.0,
+                                          max_reprojection_px=3.0), query_features=1500, min_inliers=12))
+    """SIFT + RANSAC PnP localiser against the map (its map's features are cached per photo)."""
+    map: MapConfig = field(default_factory=MapConfig)
+    """Map building (SfM, triangulation, Poisson)."""
+    filter: MissionFilterConfig = field(default_factory=MissionFilterConfig)
+    """The particle filter of path following."""
+
+
+def pick_goals(poses: np.ndarray, scores: np.ndarray, k: int, separation_m: float) -> np.ndarray:
+    """Indices of up to `k` best-scoring poses (N, 3), each at least `separation_m` from, or
+    60 degrees in heading away from, every better one picked."""
+    chosen: list[int] = []
+    for i in np.argsort(-scores):
+        if len(chosen) == k:
+            break
+        if all(np.hypot(*(poses[i, :2] - poses[j, :2])) >= separation_m
+               or abs(wrap_angle(poses[i, 2] - poses[j, 2])) >= np.radians(60) for j in chosen):
+            chosen.append(int(i))
+    return np.array(chosen, dtype=int)
+
+
+class AdaptiveMission:
+    """The adaptive stage's state: the robot and its dead reckoning (`body`), the photos, the
+    map and the localiser. `run_mission` drives it; the methods are its steps."""
+
+    def __init__(self, robot: Robot, body: Body, photos: list[MissionPhoto], robot_map: RobotMap,
+                 config: AdaptiveConfig, rng: np.random.Generator, observer: MissionObserver):
+        self.robot, self.body, self.photos, self.map = robot, body, photos, robot_map
+        self.config, self.rng, self.obs = config, rng, observer
+        w, h = robot.image_size
+        self.template = Camera(robot.intrinsics, w, h, np.eye(4))
+        self.cam_height = float(np.linalg.inv(robot.cam_from_robot)[2, 3])
+        self._features: dict[int, object] = {}
+        self.fixes = self.failed = self.given_up = 0
+        self.goals_reached: list[np.ndarray] = []
+        self.tracks = stereo_tracks(self._model_cameras(), self._feats, config.localizer.triangulation)
+        self.fmap = self._feature_map()
+
+    # --- localisation -------------------------------------------------------------------
+    def _feats(self, i: int):
+        """SIFT features of photo i (computed once per mission)."""
+        if i not in self._features:
+            self._features[i] = sift_features(self.photos[i].photo.image, self.config.localizer.triangulation.n_features)
+        return self._features[i]
+
+    def _model_cameras(self) -> dict[int, Camera]:
+        return {i: p.camera for i, p in enumerate(self.photos) if p.camera is not None and p.stage != "localise"}
+
+    def _feature_map(self) -> FeatureMap:
+        """SIFT + PnP map of the tracks so far (built once, then grown by `rebuild`)."""
+        return FeatureMap(self.tracks.points, self.tracks.descriptors, self.tracks.owner, self.config.localizer)
+
+    def pose_of_camera(self, cam_from_world: np.ndarray) -> np.ndarray:
+        """SE(2) robot pose of a camera pose (the mount undone)."""
+        world_from_robot = np.linalg.inv(cam_from_world) @ self.robot.cam_from_robot
+        return np.array([world_from_robot[0, 3], world_from_robot[1, 3],
+                         np.arctan2(world_from_robot[1, 0], world_from_robot[0, 0])])
+
+    def localise_photo(self, photo: Photo):
+        """PnP result (`PnPResult`) of a photo against the map if it passes the sanity
+        checks (camera height; within `max_fix_jump_m` of the estimate, or 3 spreads), else None."""
+        c = self.config
+        res = self.fmap.localize(photo.image, self.template) if len(self.fmap) >= c.localizer.min_inliers else None
+        if res is not None:
+            centre = np.linalg.inv(res.cam_from_world)[:3, 3]
+            pose = self.pose_of_camera(res.cam_from_world)
+            if (abs(centre[2] - self.cam_height) < c.max_fix_height_err_m
+                    and np.hypot(*(pose[:2] - self.body.est.pose[:2])) < max(c.max_fix_jump_m, 3 * self._spread())):
+                self.fixes += 1
+                return res
+        self.failed += 1
+        return None
+
+    def _spread(self) -> float:
+        return self.body.est.spread_m if isinstance(self.body, FilteredBody) else 0.0
+
+    def take_photo(self, stage: str) -> MissionPhoto:
+        """Capture, localise by vision: a good fix is the particle filter's measurement (a
+        plain `Body` takes it as its estimate). A goal photo is posed by its fix, or, when
+        PnP failed, at the filter's estimate."""
+        photo = self.robot.capture()
+        res = self.localise_photo(photo)
+        fixed = res is not None
+        cam = res.camera if fixed else None
+        if fixed and isinstance(self.body, FilteredBody):
+            self.body.est.update_pnp(self.pose_of_camera(res.cam_from_world), res.n_inliers)
+        elif fixed:
+            self.body.est.pose = self.pose_of_camera(res.cam_from_world)
+        if not fixed and stage == "goal":
+            cam = robot_camera(self.body.est.pose, self.robot.intrinsics, self.robot.image_size,
+                               self.robot.cam_from_robot)
+        if cam is not None:
+            cam = cam.with_pose(cam.cam_from_world, name=f"photo_{len(self.photos):05d}")
+        dr = self.body.est.dead_reckoning.pose.copy() if isinstance(self.body, FilteredBody) else None
+        mp = MissionPhoto(photo, self.body.est.pose.copy(), stage, cam, dr)
+        self.photos.append(mp)
+        self.obs.photo(mp)
+        self.obs.estimate(self.body.est.pose, "pnp" if fixed else "odometry")
+        self.log_particles()
+        return mp
+
+    def log_particles(self) -> None:
+        if isinstance(self.body, FilteredBody):
+            self.obs.particles(self.body.est.pf.particles, self.body.est.pf.weights)
+
+    # --- goals ----------------------------------------------------------------------------
+    def choose_goals(self) -> tuple[np.ndarray, float, object]:
+        """(goals (G, 3) best first, best score, free space) of this round."""
+        c = self.config
+        cams = [p.camera for p in self.photos if p.camera is not None and p.stage != "localise"]
+        xy = np.array([cam.center[:2] for cam in cams])
+        free = free_space_from_mesh(self.map.mesh, self.cam_height, xy)
+        cand = sample_candidates(free, c.n_candidates, self.rng, c.clearance_m)
+        vq = ViewQuality(self.map.mesh, cams, config=c.view_quality)
+        try:
+            scores = vq.score_poses(cand, self.template, self.robot.cam_from_robot)
+        finally:
+            vq.release()
+        pick = pick_goals(cand, scores, c.goals_per_round, c.goal_separation_m)
+        self.obs.map(self.map, free)
+        self.obs.candidates(cand, scores, cand[pick])
+        return cand[pick], float(scores.max(initial=0.0)), free
+
+    def nav_grid(self, free):
+        cams = np.array([p.estimate[:2] for p in self.photos])
+        lo = np.minimum(cams.min(0), np.asarray(free.bounds[:2])) - 0.5
+        hi = np.maximum(cams.max(0), np.asarray(free.bounds[2:])) + 0.5
+        grid = nav_grid_from_points(self.map.points, (*lo, *hi), self.config.grid)
+        self.obs.grid(grid)
+        return grid
+
+    # --- path following -----------------------------------------------------------------------
+    def _aim_and_drive(self, target: np.ndarray):
+        est = self.body.est.pose
+        d = target - est[:2]
+        turn = wrap_angle(np.arctan2(d[1], d[0]) - est[2])
+        if abs(turn) > 1e-3:
+            self.body.move(turn=float(turn))
+        return self.body.move(drive=float(min(self.config.leg_m, np.hypot(*d))))
+
+    def _recover(self, motion) -> None:
+        """Back off an obstacle, turn away and drive a little off the path."""
+        c = self.config
+        self.body.move(drive=c.backoff_m if motion.bumper_rear else -c.backoff_m)
+        self.body.move(turn=float(self.rng.uniform(np.pi / 4, np.pi / 2) * self.rng.choice([-1.0, 1.0])))
+        self.body.move(drive=c.off_path_m)
+
+    def go_to(self, goal: np.ndarray, grid) -> bool:
+        """Drive to goal (3,) on the plan; True when reached."""
+        c = self.config
+        obstacles, legs = 0, 0
+        while obstacles <= c.max_obstacles and legs < c.max_legs_per_goal:
+            path = plan_path(grid, self.body.est.pose[:2], goal[:2], max_cost=c.max_path_cost)
+            if path is None:
+                return False
+            self.obs.path(path)
+            t, blocked = 1, False
+            while t < len(path) and legs < c.max_legs_per_goal:
+                last = t == len(path) - 1
+                if np.hypot(*(path[t] - self.body.est.pose[:2])) < (c.reach_m if last else c.switch_m):
+                    if last:
+                        self.take_photo("localise")  # check the arrival by vision
+                        if np.hypot(*(path[t] - self.body.est.pose[:2])) < c.reach_m + 0.05:
+                            return True
+                        legs += 1
+                        continue
+                    t += 1
+                    self.take_photo("localise")  # vision fix at every path node
+                    continue
+                motion = self._aim_and_drive(path[t])
+                legs += 1
+                if motion.blocked:
+                    obstacles += 1
+                    self._recover(motion)
+                    blocked = True
+                    break
+                self.log_particles()
+                if isinstance(self.body, FilteredBody) and self.body.est.needs_fix():
+                    self.take_photo("localise")  # the filter's spread grew: look before going on
+            if not blocked:
+                return legs < c.max_legs_per_goal
+            self.take_photo("localise")
+        return False
+
+    def _face(self, heading: float) -> None:
+        turn = wrap_angle(heading - self.body.est.pose[2])
+        if abs(turn) > 1e-3:
+            self.body.move(turn=float(turn))
+
+    def capture_at(self, goal: np.ndarray, budget: int) -> list[MissionPhoto]:
+        """A stereo pair at the goal (at most `budget` photos): one photo facing the goal
+        heading, then one after a side step of `stereo_baseline_m` (to the other side when
+        the first is blocked), so what the goal sees is seen from two directions."""
+        c = self.config
+        self._face(goal[2])
+        out = [self.take_photo("goal")]
+        for k in range(1, min(c.photos_per_goal, budget)):
+            side = goal[2] + (np.pi / 2 if k % 2 else -np.pi / 2)
+            self._face(side)
+            motion = self.body.move(drive=c.stereo_baseline_m * k)
+            if motion.blocked:
+                self.body.move(drive=-c.backoff_m)
+            self._face(goal[2])
+            out.append(self.take_photo("goal"))
+        return out
+
+    def rebuild(self, new: list[MissionPhoto]) -> None:
+        """Add the new posed photos' tracks to the map (mesh rebuilt) and the localiser."""
+        cams = self._model_cameras()
+        new_ids = {i for i in cams if any(self.photos[i] is q for q in new)}
+        if not new_ids:
+            return
+        tracks = stereo_tracks(cams, self._feats, self.config.localizer.triangulation, only=new_ids)
+        self.map = extend_map(self.map, {i: cams[i] for i in new_ids}, tracks, self.config.map)
+        self.tracks = self.tracks + tracks
+        self.fmap = self._feature_map()
+
+
+def start_filter(robot: Robot, body: Body, photos: list[MissionPhoto], rmap: RobotMap,
+                 config: AdaptiveConfig, rng: np.random.Generator) -> FilteredBody:
+    """The adaptive stage's body: the particle filter starts at the last random photo's SfM
+    pose when SfM posed it (the robot has not moved since), else at the dead reckoning."""
+    last = len(photos) - 1
+    start, std = body.est.pose, None
+    if last in rmap.cameras:
+        w2r = rmap.cameras[last].world_from_cam @ robot.cam_from_robot
+        start = np.array([w2r[0, 3], w2r[1, 3], np.arctan2(w2r[1, 0], w2r[0, 0])])
+        std = np.array([0.1, 0.1, np.radians(3.0)])
+    xy = np.array([c.center[:2] for c in rmap.cameras.values()] or [start[:2]])
+    loc = MissionLocalizer(start, np.r_[xy, start[None, :2]], config.filter, rng, std)
+    return FilteredBody(robot, loc, body.path_m)
