@@ -1,5 +1,5 @@
 """Speed figure of the Scenic Route Planner's NBV cost (see `ibrnav bench`): SMC particles
-scored per second by the batched ray traversal of `scenic_cost.view_costs` against the
+scored per second by the batched ray traversal of `explore.scenic.cost.view_costs` against the
 naive loop that marches one ray at a time, on the office map after the initial pair."""
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ areas rich in good views. Edges do not cost their length but the path-cost integ
 with C_q the stereo-pair cost of eq. (9) of a node: against a fixed reference pose (the
 other agent, a *collaborative stereo* tree) or against its parent (an *SfM* tree). As in
 RRT*, a new node picks, among the collision-free tree nodes near it, the parent that gives
-the cheapest path. Edges are checked against the map (scenic_workspace.segments_free).
+the cheapest path. Edges are checked against the map (`explore.scenic.workspace.segments_free`).
 Poses are 4-DoF (x, y, z, yaw), metres and radians.
 """
 
