@@ -1,13 +1,14 @@
-"""The `drive` loop: a robot drives a route and photographs it, killable at any moment and
-resumable. It drives leg by leg (`robot.waypoint_follower`), take a photo after every leg, and write each leg's
-motion, readings, photo and pose estimate to a capture session (`robot.session`), ending
-the leg with a commit record that holds everything resuming needs.
+"""The `drive` loop: a robot drives a route and photographs it, and can be killed at any
+moment and resumed. It drives leg by leg (`robot.waypoint_follower`), takes a photo after
+every leg, and writes each leg's motion, readings, photo and pose estimate to a capture
+session (`robot.session`), ending the leg with a commit record that holds everything
+resuming needs.
 
 Determinism on resume: every leg's random numbers come from generators seeded with
-(seed, leg), not from one stream, and a simulated robot's state (true pose, odometry,
-clock, photo counter: `SimRobot.state()`) is saved in each commit and restored from the last one; so a run
-killed and resumed writes the same records and photos as one left alone. A real robot
-resumes from where it physically is, with the logged pose estimate.
+(seed, leg), not from one stream, and a simulated robot's state (true pose, odometry, clock,
+photo counter: `SimRobot.state()`) is saved in each commit and restored from the last one;
+so a run killed and resumed writes the same records and photos as one left alone. A real
+robot resumes from where it physically is, with the logged pose estimate.
 Poses: world SE(2) (x, y, theta), metres and radians.
 """
 

@@ -6,11 +6,15 @@ folder and rerun. Frames: world SE(2) poses (x, y, theta), metres, radians."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ibr.camera import Camera
 from robot.protocol import Photo
+
+if TYPE_CHECKING:
+    from robot.mission.map_building import RobotMap
 
 
 @dataclass

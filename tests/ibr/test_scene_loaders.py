@@ -126,3 +126,20 @@ def test_synthetic_spec(gl_ctx):
     assert len(scene) == 3 and scene.mesh is not None
     assert scene.views[0].image.shape == (48, 64, 3)
     assert scene.world.seed == 2
+
+
+def test_parse_scene_spec_is_the_one_reader_of_scene():
+    from ibr.scene import parse_scene_spec
+
+    spec = parse_scene_spec("synthetic:office?seed=3&views=5")
+    assert (spec.world, spec.params, spec.path) == ("office", {"seed": 3, "views": 5}, None)
+    assert spec.seed(7) == 3 and parse_scene_spec("synthetic:courtyard").seed(7) == 7
+    assert parse_scene_spec("some/folder").path.name == "folder"
+    for bad, match in [("synthetic:nosuch?seed=3", "nosuch"), ("synthetic:office?seed=x", "bad query"),
+                       ("synthetic:office?color=1", "color")]:
+        with pytest.raises(SceneError, match=match):
+            parse_scene_spec(bad)
+    with pytest.raises(SceneError, match="views"):
+        parse_scene_spec("synthetic:office?views=3", allowed=("seed",))
+    with pytest.raises(SceneError, match="needs a synthetic world"):
+        parse_scene_spec("some/folder", synthetic_only=True)

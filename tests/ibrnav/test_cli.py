@@ -68,6 +68,25 @@ def test_bench_writes_json(tmp_path):
     out = tmp_path / "bench.json"
     run = ibrnav("bench", "--only", "mesh_views_per_s_64x48", "--json", out)
     assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout) == json.loads(out.read_text())  # stdout is the JSON alone
     fig = json.loads(out.read_text())["figures"]["mesh_views_per_s_64x48"]
     assert set(fig) == {"value", "unit", "baseline", "ratio"}
     assert fig["ratio"] == pytest.approx(fig["value"] / fig["baseline"])
+
+
+def test_bench_knows_the_figures_of_every_package():
+    from ibrnav.bench import all_figures, bench_modules
+
+    assert bench_modules() == ["ibr.bench", "ibr.render.bench", "localization.bench", "explore.bench",
+                               "explore.scenic.bench", "explore.vueplan.bench"]
+    assert set(all_figures()) == {
+        "mesh_views_per_s_64x48", "ulr_fps_640x480_10src", "particle_likelihoods_per_s_64x48", "pnp_s_per_query",
+        "heuristic_evals_per_s_100src_64x48", "heuristic_evals_per_s_100src_160x120", "astar_s_100x100",
+        "astar_s_1000x1000", "scenic_nbv_poses_per_s", "vueplan_phase2_s_per_nbv", "vueplan_phase1_s_500"}
+
+
+def test_version_and_quiet_flags():
+    run = ibrnav("--version")
+    assert run.returncode == 0 and run.stdout.startswith("ibrnav ")
+    run = ibrnav("-q", "explore", "synthetic:nowhere")
+    assert run.returncode == 2 and "synthetic:nowhere" in run.stderr  # errors are shown even when quiet

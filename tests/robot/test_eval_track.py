@@ -1,7 +1,7 @@
-import json
+"""Tracking evaluation in a synthetic world: the convergence rule, and a kidnapped robot
+recovered by the render-likelihood particle filter."""
 
 import numpy as np
-import pytest
 
 from robot.eval_track import TrackConfig, run_tracking, steps_to_localise
 
