@@ -263,11 +263,15 @@ def test_motors_stopped_when_the_with_block_raises(emu):
 def test_motors_stopped_at_interpreter_exit(tmp_path):
     script = textwrap.dedent("""
         import atexit, sys
+        emus = []
+        # registered before anything of robot.nxt is imported (the driver registers its own
+        # handler when imported), so it runs last: after the driver's
+        atexit.register(lambda: print("running:", [m.running for m in emus[0].motors]))
         from robot.nxt.emulator import NXTEmulator
-        emu = NXTEmulator()
-        atexit.register(lambda: print("running:", [m.running for m in emu.motors]))  # runs last
         from robot.nxt.driver import NXTRobot
         from robot.nxt import protocol as P
+        emu = NXTEmulator()
+        emus.append(emu)
         r = NXTRobot(emu.port)
         r.brick.set_output_state(1, 50, P.MODE_ON, 0, 0, P.RUN_RUNNING, 0)
         assert emu.motors[1].running
