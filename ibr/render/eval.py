@@ -19,6 +19,7 @@ from ibr.scene import Scene
 
 log = logging.getLogger(__name__)
 
+
 class EvalError(RendererError):
     """Bad evaluation request (unknown method, too few views, no mesh for --proxy mesh)."""
 

@@ -17,6 +17,7 @@ from localization.localize import METHODS, MODELS
 
 log = logging.getLogger(__name__)
 
+
 def parse_floats(text: str, n: int, flag: str) -> np.ndarray:
     """'a,b,c' -> (n,) floats, or an InputError naming the flag."""
     try:

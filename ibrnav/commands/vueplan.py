@@ -41,7 +41,7 @@ def check_flags(args: argparse.Namespace) -> None:
         raise InputError(f"--min-range {args.min_range} must be in [0, --max-range {args.max_range})")
     if not 0 < args.fov <= 360 or not 0 < args.grazing < 90:
         raise InputError(f"--fov {args.fov} must be in (0, 360] and --grazing {args.grazing} "
-                        "in (0, 90) degrees")
+                         "in (0, 90) degrees")
 
 
 def run(args: argparse.Namespace) -> int:
