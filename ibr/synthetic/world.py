@@ -180,18 +180,23 @@ class SyntheticWorld:
         """`default_cameras` of a world with several rooms: each room's share of `n`
         (by floor area, at least one while there are cameras left) on headings around the
         room, each standing 35% of the way from the room's middle to the wall behind it. In
-        a long room (a corridor) the middles are spread along its length."""
+        a long room (a corridor) the middles are spread along its length and the cameras
+        look along it."""
         area = np.array([r.polygon.area for r in self.rooms])
         share = _apportion(n, area)
         cams = []
         for room, k in zip(self.rooms, share):
             floor = self.free_space.intersection(room.polygon)
             inners = [g for g in (floor.buffer(-m) for m in (0.5, 0.3)) if g.area > 1e-3] + [floor]
-            ends = _long_axis(room.polygon)
+            ends, aspect = _long_axis(room.polygon)
+            axis = np.arctan2(*(ends[1] - ends[0])[::-1])
             phase = rng.uniform(0, 2 * np.pi)
             for i in range(k):
                 centre = ends[0] + (i + 0.5) / k * (ends[1] - ends[0])
-                yaw = phase + 2 * np.pi * i / k + rng.normal(0, 0.05)
+                if aspect > 2:  # a corridor: look along it, both ways, not at the wall beside
+                    yaw = axis + np.pi * (i % 2) + rng.uniform(-0.5, 0.5)
+                else:
+                    yaw = phase + 2 * np.pi * i / k + rng.normal(0, 0.05)
                 d = np.array([np.cos(yaw), np.sin(yaw)])
                 xy, inner = None, floor
                 for inner in inners:  # the widest margin that leaves a place on the ray
@@ -212,16 +217,18 @@ class SyntheticWorld:
         return cams
 
 
-def _long_axis(polygon: shapely.Polygon) -> np.ndarray:
+def _long_axis(polygon: shapely.Polygon) -> tuple[np.ndarray, float]:
     """(2, 2) ends of a polygon's middle line: the long centre line of its minimum rotated
-    rectangle, less half the short side at each end (both the centre for a square)."""
+    rectangle, less half the short side at each end (both the centre for a square); and
+    the rectangle's aspect ratio (long side / short side)."""
     corners = np.array(polygon.minimum_rotated_rectangle.exterior.coords)[:4]
     e1, e2 = corners[1] - corners[0], corners[2] - corners[1]
     long, short = (e1, e2) if np.linalg.norm(e1) >= np.linalg.norm(e2) else (e2, e1)
-    half = max(0.0, (np.linalg.norm(long) - np.linalg.norm(short)) / 2)
-    u = long / np.linalg.norm(long)
+    L, S = np.linalg.norm(long), np.linalg.norm(short)
+    u = long / L
     centre = corners.mean(axis=0)
-    return np.array([centre - half * u, centre + half * u])
+    half = (L - S) / 2
+    return np.array([centre - half * u, centre + half * u]), L / S
 
 
 def _apportion(n: int, weights: np.ndarray) -> np.ndarray:
