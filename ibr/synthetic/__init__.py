@@ -1,15 +1,18 @@
 """Synthetic worlds generated in code from a seed: the embedded default for the main
-command and most tests (no downloads). `make_world(name, seed)`; `WORLDS` lists names."""
+command and most tests (no downloads). `make_world(name, seed)`; `WORLDS` lists names;
+`tour_route(world)` is a route through any of them made from its floor plan."""
 
 from __future__ import annotations
 
 import functools
 
+from ibr.synthetic.apartment import make_apartment
 from ibr.synthetic.courtyard import make_courtyard
 from ibr.synthetic.office import loop_route, make_office
-from ibr.synthetic.world import SyntheticWorld
+from ibr.synthetic.routes import tour_route
+from ibr.synthetic.world import Doorway, Room, SyntheticWorld
 
-WORLDS = {"office": make_office, "courtyard": make_courtyard}
+WORLDS = {"office": make_office, "courtyard": make_courtyard, "apartment": make_apartment}
 
 
 @functools.lru_cache(maxsize=8)
@@ -20,4 +23,4 @@ def make_world(name: str, seed: int = 0) -> SyntheticWorld:
     return WORLDS[name](seed)
 
 
-__all__ = ["WORLDS", "SyntheticWorld", "loop_route", "make_world"]
+__all__ = ["WORLDS", "Doorway", "Room", "SyntheticWorld", "loop_route", "make_world", "tour_route"]

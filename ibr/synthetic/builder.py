@@ -7,6 +7,7 @@ u_edge x v_edge, so give edges counter-clockwise as seen from the visible side.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -19,28 +20,34 @@ ATLAS_WIDTH = 4096
 PAD = 2  # texels between tiles
 
 
+Texture = str | Callable[[np.random.Generator, int, int], np.ndarray]
+"""A `textures.KINDS` name, or a function (rng, h, w) -> (h, w, 3) uint8 image, e.g.
+`functools.partial(textures.painted_wall, color=(200, 180, 150))`."""
+
+
 @dataclass
 class Quad:
     origin: np.ndarray
     u_edge: np.ndarray
     v_edge: np.ndarray
-    texture: str
+    texture: Texture
     specular: float = 0.0
 
 
 @dataclass
 class QuadMeshBuilder:
     """Collects quads, then `build(rng, texels_per_m)` draws each quad's texture into an
-    atlas (shelf packing) and returns one trimesh with TextureVisuals and a per-vertex
-    `specular` attribute (read by `ibr.mesh_renderer`)."""
+    atlas (shelf packing) and returns one trimesh with TextureVisuals, a per-vertex
+    `specular` attribute (read by `ibr.mesh_renderer`) and, in `metadata["quad_textures"]`,
+    each quad's texture kind (quad i is faces 2i and 2i + 1)."""
 
     quads: list[Quad] = field(default_factory=list)
 
-    def quad(self, origin, u_edge, v_edge, texture: str, specular: float = 0.0) -> None:
+    def quad(self, origin, u_edge, v_edge, texture: Texture, specular: float = 0.0) -> None:
         self.quads.append(Quad(*(np.asarray(v, float) for v in (origin, u_edge, v_edge)),
                                texture, specular))
 
-    def box(self, lo, hi, texture: str, specular: float = 0.0, bottom: bool = False) -> None:
+    def box(self, lo, hi, texture: Texture, specular: float = 0.0, bottom: bool = False) -> None:
         """Axis-aligned box from corner `lo` to `hi` with outward faces."""
         (x0, y0, z0), (x1, y1, z1) = lo, hi
         dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
@@ -60,7 +67,8 @@ class QuadMeshBuilder:
         atlas = np.zeros((atlas_h, ATLAS_WIDTH, 3), np.uint8)
         verts, uvs, spec = [], [], []
         for q, (w, h), (x, y) in zip(self.quads, sizes, slots):
-            atlas[y : y + h, x : x + w] = KINDS[q.texture](rng, h, w)
+            draw = KINDS[q.texture] if isinstance(q.texture, str) else q.texture
+            atlas[y : y + h, x : x + w] = draw(rng, h, w)
             o, a, b = q.origin, q.u_edge, q.v_edge
             verts += [o, o + a, o + a + b, o + b]
             u0, u1 = (x + 0.5) / ATLAS_WIDTH, (x + w - 0.5) / ATLAS_WIDTH
@@ -75,7 +83,15 @@ class QuadMeshBuilder:
             uv=np.array(uvs), material=trimesh.visual.material.SimpleMaterial(image=Image.fromarray(atlas)))
         mesh = trimesh.Trimesh(np.array(verts), faces, visual=visual, process=False)
         mesh.vertex_attributes["specular"] = np.array(spec, np.float32)
+        mesh.metadata["quad_textures"] = [_texture_name(q.texture) for q in self.quads]
         return mesh
+
+
+def _texture_name(texture: Texture) -> str:
+    """The KINDS name of a quad's texture (a function's name for a callable)."""
+    if isinstance(texture, str):
+        return texture
+    return getattr(texture, "func", texture).__name__
 
 
 def _shelf_pack(sizes: list[tuple[int, int]]) -> tuple[list[tuple[int, int]], int]:

@@ -9,7 +9,7 @@ import shapely
 
 from ibr.mesh_renderer import Light
 from ibr.synthetic.builder import QuadMeshBuilder
-from ibr.synthetic.world import SyntheticWorld
+from ibr.synthetic.world import Room, SyntheticWorld
 
 HALF = 20.0  # half-size of the site (m)
 BUILDINGS = {"low": (-12.0, -6.0, -4.0, 6.0, 6.0), "tall": (4.0, -10.0, 10.0, 2.0, 12.0)}
@@ -32,4 +32,5 @@ def make_courtyard(seed: int = 0) -> SyntheticWorld:
                           Light(position=(0.45, 0.3, 0.84), directional=True, ambient=0.5,
                                 diffuse=0.55),
                           background=(0.62, 0.76, 0.95), view_height_m=1.6,
-                          look_outward=False)
+                          look_outward=False,
+                          rooms=[Room("site", shapely.box(-HALF, -HALF, HALF, HALF), "outdoor")])

@@ -10,7 +10,7 @@ import shapely
 
 from ibr.mesh_renderer import Light
 from ibr.synthetic.builder import QuadMeshBuilder
-from ibr.synthetic.world import SyntheticWorld
+from ibr.synthetic.world import Room, SyntheticWorld
 
 ROOM_X, ROOM_Y, ROOM_H = 3.0, 4.0, 2.6  # half-width, half-length, height (m)
 
@@ -44,7 +44,7 @@ def make_office(seed: int = 0) -> SyntheticWorld:
     free = shapely.box(-X, -Y, X, Y).difference(shapely.union_all(footprints))
     return SyntheticWorld("office", seed, b.build(rng, texels_per_m=160), free,
                           Light(position=(0.3, -0.5, H - 0.2), ambient=0.6, diffuse=0.4), background=(0.0, 0.0, 0.0),
-                          view_height_m=1.2)
+                          view_height_m=1.2, rooms=[Room("office", shapely.box(-X, -Y, X, Y))])
 
 
 def loop_route(world: SyntheticWorld) -> np.ndarray:

@@ -2,7 +2,9 @@
 
 Each texture is an (H, W, 3) uint8 image drawn with numpy and OpenCV: multi-octave value
 noise for low-frequency variation, plus shapes, lines and text at several scales so SIFT
-finds corners and blobs everywhere (a blank wall would leave SfM and PnP nothing to match).
+finds corners and blobs everywhere (a blank wall would leave SfM and PnP nothing to match),
+except `plain_wall`: the one deliberately textureless kind. Kinds take `(rng, h, w)` and most
+an optional `color` (RGB 0-255) so the surfaces of one room can share a paint or a floor.
 """
 
 from __future__ import annotations
@@ -65,11 +67,11 @@ def scatter_marks(img: np.ndarray, rng: np.random.Generator, n: int, scale: floa
                         max(1, s // 10), cv2.LINE_AA)
 
 
-def painted_wall(rng, h, w) -> np.ndarray:
-    """Light paint with posters and pinned notes."""
-    img = _shade(_color(rng, 150, 230), value_noise(rng, h, w, 5), 0.12)
+def painted_wall(rng, h, w, color=None) -> np.ndarray:
+    """Light paint (`color`, else a random one) with posters and pinned notes."""
+    img = _shade(_color(rng, 150, 230) if color is None else color, value_noise(rng, h, w, 5), 0.12)
     for _ in range(max(2, h * w // 40000)):  # posters
-        pw, ph = int(rng.uniform(0.08, 0.25) * w), int(rng.uniform(0.15, 0.4) * h)
+        pw, ph = max(2, int(rng.uniform(0.08, 0.25) * w)), max(2, int(rng.uniform(0.15, 0.4) * h))
         x, y = int(rng.integers(0, max(1, w - pw))), int(rng.integers(0, max(1, h - ph)))
         poster = _shade(_color(rng, 30, 255), value_noise(rng, ph, pw, 3), 0.4)
         scatter_marks(poster, rng, 12, max(4, min(pw, ph) / 6))
@@ -80,9 +82,9 @@ def painted_wall(rng, h, w) -> np.ndarray:
     return img
 
 
-def wood_floor(rng, h, w) -> np.ndarray:
-    """Planks along x with grain, seams and scuffs."""
-    img = _shade(_color(rng, 90, 170), value_noise(rng, h, w, 5, 8), 0.25)
+def wood_floor(rng, h, w, color=None) -> np.ndarray:
+    """Planks along x with grain, seams and scuffs; `color` (else random) is the wood."""
+    img = _shade(_color(rng, 90, 170) if color is None else color, value_noise(rng, h, w, 5, 8), 0.25)
     plank = max(8, h // int(rng.integers(10, 20)))
     for y in range(0, h, plank):
         img[y : y + plank] = np.clip(img[y : y + plank] * rng.uniform(0.8, 1.2), 0, 255)
@@ -94,9 +96,9 @@ def wood_floor(rng, h, w) -> np.ndarray:
     return img
 
 
-def ceiling_tiles(rng, h, w) -> np.ndarray:
-    """Acoustic tiles on a grid, speckled."""
-    img = _shade(_color(rng, 190, 240), value_noise(rng, h, w, 4, 16), 0.15)
+def ceiling_tiles(rng, h, w, color=None) -> np.ndarray:
+    """Acoustic tiles on a grid, speckled; `color` (else random) is the tiles'."""
+    img = _shade(_color(rng, 190, 240) if color is None else color, value_noise(rng, h, w, 4, 16), 0.15)
     speck = rng.random((h, w)) < 0.02
     img[speck] = (img[speck] * 0.6).astype(np.uint8)
     step = max(16, min(h, w) // 8)
@@ -108,9 +110,9 @@ def ceiling_tiles(rng, h, w) -> np.ndarray:
     return img
 
 
-def furniture(rng, h, w) -> np.ndarray:
-    """Saturated surface with a printed pattern."""
-    img = _shade(_color(rng, 40, 220), value_noise(rng, h, w, 4), 0.3)
+def furniture(rng, h, w, color=None) -> np.ndarray:
+    """Saturated surface (`color`, else random) with a printed pattern."""
+    img = _shade(_color(rng, 40, 220) if color is None else color, value_noise(rng, h, w, 4), 0.3)
     scatter_marks(img, rng, max(20, h * w // 1200), 6)
     scatter_marks(img, rng, max(5, h * w // 6000), min(h, w) / 12)
     return img
@@ -147,4 +149,69 @@ def ground(rng, h, w) -> np.ndarray:
     return img
 
 
-KINDS = {f.__name__: f for f in (painted_wall, wood_floor, ceiling_tiles, furniture, facade, ground)}
+def plain_wall(rng, h, w, color=None) -> np.ndarray:
+    """Uniform matt paint with no marks at all: a textureless wall, where SIFT finds
+    nothing (what feature matching and photo likelihoods must survive)."""
+    img = np.empty((h, w, 3), np.uint8)
+    img[:] = _color(rng, 170, 240) if color is None else color
+    return img
+
+
+def wallpaper(rng, h, w, color=None) -> np.ndarray:
+    """Striped paper (`color`, else random) with a small printed motif on a lattice, plus
+    scattered marks so no two places of it look the same."""
+    base = np.asarray(_color(rng, 120, 230) if color is None else color, np.float32)
+    img = _shade(base, value_noise(rng, h, w, 4), 0.08)
+    stripe = max(6, w // int(rng.integers(12, 30)))
+    dark = tuple(int(c) for c in base * rng.uniform(0.6, 0.85))
+    for x in range(0, w, 2 * stripe):
+        img[:, x : x + stripe] = (img[:, x : x + stripe] * rng.uniform(0.85, 0.95)).astype(np.uint8)
+    step = 2 * stripe
+    ink = _color(rng, 20, 160)
+    for y in range(step // 2, h, step):
+        for x in range(step // 2 + (y // step % 2) * stripe, w, step):
+            cv2.circle(img, (x, y), max(2, stripe // 4), ink, -1, cv2.LINE_AA)
+            cv2.circle(img, (x, y), max(3, stripe // 2), dark, 1, cv2.LINE_AA)
+    scatter_marks(img, rng, h * w // 3000, 6)
+    scatter_marks(img, rng, h * w // 12000, 14)
+    return img
+
+
+def floor_tiles(rng, h, w, color=None) -> np.ndarray:
+    """Ceramic tiles with grout lines, each tile a little different, a few scuffs."""
+    base = np.asarray(_color(rng, 100, 230) if color is None else color, np.float32)
+    img = _shade(base, value_noise(rng, h, w, 5, 8), 0.1)
+    step = max(16, int(min(h, w) / rng.uniform(6, 12)))
+    for y in range(0, h, step):
+        for x in range(0, w, step):
+            img[y : y + step, x : x + step] = np.clip(img[y : y + step, x : x + step]
+                                                      * rng.uniform(0.85, 1.15), 0, 255)
+    grout = tuple(int(c) for c in base * 0.5)
+    for x in range(0, w, step):
+        cv2.line(img, (x, 0), (x, h), grout, 2)
+    for y in range(0, h, step):
+        cv2.line(img, (0, y), (w, y), grout, 2)
+    scatter_marks(img, rng, h * w // 2500, 5)
+    scatter_marks(img, rng, h * w // 10000, step / 3)
+    return img
+
+
+def carpet(rng, h, w, color=None) -> np.ndarray:
+    """Fibrous carpet (`color`, else random) with a woven border pattern and stains."""
+    base = _color(rng, 60, 200) if color is None else color
+    img = _shade(base, value_noise(rng, h, w, 6, 16), 0.3)
+    fibre = rng.normal(0, 14, (h, w, 1)).astype(np.float32)
+    img = np.clip(img + fibre, 0, 255).astype(np.uint8)
+    step = max(10, min(h, w) // int(rng.integers(8, 16)))
+    ink = _color(rng, 20, 235)
+    for y in range(step // 2, h, step):
+        for x in range(step // 2, w, step):
+            d = step // 3
+            cv2.polylines(img, [np.array([(x, y - d), (x + d, y), (x, y + d), (x - d, y)], np.int32)],
+                          True, ink, 1, cv2.LINE_AA)
+    scatter_marks(img, rng, h * w // 2500, 6)
+    return img
+
+
+KINDS = {f.__name__: f for f in (painted_wall, wood_floor, ceiling_tiles, furniture, facade, ground,
+                                   plain_wall, wallpaper, floor_tiles, carpet)}
