@@ -41,18 +41,23 @@ class Light:
 class GBuffer:
     """One rendered view. color (H, W, 3) uint8; depth (H, W) float32 camera-z in metres;
     world (H, W, 3) float32 world points; normal (H, W, 3) float32 unit world normals
-    facing the camera when lit; mask (H, W) bool, true where the mesh was hit."""
+    facing the camera when lit; mask (H, W) bool, true where the mesh was hit; trust (H, W)
+    float32 the interpolated vertex trust (alpha; 1 unless the mesh has a `trust` attribute,
+    0 where nothing was hit)."""
 
     color: np.ndarray
     depth: np.ndarray
     world: np.ndarray
     normal: np.ndarray
     mask: np.ndarray
+    trust: np.ndarray | None = None
 
 
 def mesh_vertex_data(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """Interleaved float32 vertex data (V, 13) = position 3, normal 3, uv 2, rgba 4,
-    specular 1; int32 faces (F, 3); the texture image (H, W, 3) uint8 or None."""
+    specular 1; int32 faces (F, 3); the texture image (H, W, 3) uint8 or None. A per-vertex
+    attribute `trust` (in [0, 1], e.g. `localization.model_trust`) becomes the alpha, which
+    the renders carry in their colour attachment's alpha channel."""
     V = len(mesh.vertices)
     uv = np.zeros((V, 2))
     rgba = np.ones((V, 4))
@@ -68,6 +73,8 @@ def mesh_vertex_data(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray, np.
         rgba = np.asarray(visual.vertex_colors, dtype=np.float64) / 255.0
     elif visual.kind == "face":  # expand face colours onto vertices (last face wins)
         rgba[mesh.faces.ravel()] = np.repeat(visual.face_colors / 255.0, 3, axis=0)
+    if "trust" in mesh.vertex_attributes:
+        rgba[:, 3] = np.asarray(mesh.vertex_attributes["trust"], dtype=np.float64)
     specular = np.asarray(mesh.vertex_attributes.get("specular", np.zeros(V)), dtype=np.float64)
     data = np.c_[mesh.vertices, mesh.vertex_normals, uv, rgba, specular.reshape(V, 1)]
     return data.astype("f4"), np.asarray(mesh.faces, dtype="i4"), image
@@ -95,13 +102,16 @@ class MeshRenderer:
             self.prog, [(self.vbo, "3f4 3f4 2f4 4f4 1f4", *self.ATTRS)], self.ibo)
         self._fbos: dict[tuple[int, int], moderngl.Framebuffer] = {}
 
-    def write_uv(self, uv: np.ndarray) -> None:
+    def write_uv(self, uv: np.ndarray, trust: np.ndarray | None = None) -> None:
         """Replace the texture coordinates (V, 2) of the mesh's vertices (same order as the
-        mesh, trimesh convention: v = 0 at the texture's bottom row) on the GPU."""
+        mesh, trimesh convention: v = 0 at the texture's bottom row) on the GPU, and their
+        trust (V,) in [0, 1] (the colour's alpha) when given."""
         data = np.frombuffer(self.vbo.read(), "f4").reshape(-1, 13).copy()
         if len(uv) != len(data):
             raise ValueError(f"{len(uv)} texture coordinates for {len(data)} vertices")
         data[:, 6:8] = uv
+        if trust is not None:
+            data[:, 11] = trust
         self.vbo.write(data.tobytes())
 
     def release(self) -> None:
@@ -164,13 +174,14 @@ class MeshRenderer:
         if light is not None:
             self.prog["u_eye"] = tuple(camera.center)
         self.vao.render(moderngl.TRIANGLES)
-        color = np.frombuffer(fbo.read(components=3, attachment=0), np.uint8).reshape(H, W, 3)
+        rgba = np.frombuffer(fbo.read(components=4, attachment=0), np.uint8).reshape(H, W, 4)
+        color = np.ascontiguousarray(rgba[..., :3])
         world = np.frombuffer(fbo.read(components=4, attachment=1, dtype="f4"), "f4").reshape(H, W, 4)
         normal = np.frombuffer(fbo.read(components=4, attachment=2, dtype="f4"), "f4").reshape(H, W, 4)
         depth = np.frombuffer(fbo.read(components=1, attachment=3, dtype="f4"), "f4").reshape(H, W)
         mask = world[..., 3] > 0.5
         return GBuffer(self._with_background(color, mask), depth.copy(), world[..., :3].copy(),
-                       normal[..., :3].copy(), mask)
+                       normal[..., :3].copy(), mask, rgba[..., 3] / np.float32(255.0))
 
     def _with_background(self, color: np.ndarray, mask: np.ndarray) -> np.ndarray:
         color = color.copy()

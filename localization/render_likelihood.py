@@ -4,15 +4,23 @@ Heigl et al. (light-field particle filter): a particle's weight comes from compa
 camera image with the image the model renders at the particle's pose, pixel by pixel.
 Here all N particle views are drawn in one instanced pass into the tiles of an atlas
 (`MeshRenderer.draw_batch`), a compute shader compares every tile with the observed image
-and reduces it to (zero-mean NCC, mean squared difference, covered fraction), and only
-those N x 4 numbers are read back. NCC is exposure-tolerant; the SSD score is the plain
-reference. Scores become log-likelihoods with a temperature (tempering/annealing):
+and reduces it to (zero-mean NCC, mean squared difference, covered fraction, robust cost),
+and only those N x 4 numbers are read back. Scores become log-likelihoods with a temperature
+(tempering/annealing):
 
-    ncc:  log L = -(1 - NCC * coverage) / temperature
-    ssd:  log L = -MSE / (2 sigma^2), sigma = temperature   (intensities in [0, 1])
+    ncc:    log L = -(1 - NCC * coverage) / temperature
+    ssd:    log L = -MSE / (2 sigma^2), sigma = temperature   (intensities in [0, 1])
+    robust: log L = -cost / temperature
 
-Uncovered pixels (no model geometry) count as uncorrelated, so views that leave the
-model are penalised rather than scored on a few lucky pixels.
+The robust cost (`robust_cost`, the 6-DoF filter's) weighs each pixel by how much the model
+can be trusted there: the model's per-vertex trust (`localization.model_trust`: photo-
+consistency and support by triangulated points; 0 where the proxy guesses), 0 at occlusion
+boundaries, nothing where the model has no geometry (sky, holes, far background). The
+render's exposure is fitted to the photo (gain and offset), residuals are truncated at tau,
+and each pixel scores its gain over a null model (a flat image): a likelihood ratio, so a
+pose is rewarded only for observed structure the model predicts, and chance agreement of
+an untextured or wrong view earns nothing. Uncovered pixels count as unexplained, so views
+that leave the model are penalised rather than scored on a few lucky pixels.
 """
 
 from __future__ import annotations
@@ -38,6 +46,16 @@ class LikelihoodConfig:
     """'ncc' (zero-mean normalised cross-correlation, exposure-tolerant) or 'ssd'."""
     temperature: float = 0.05
     """Divides the score: smaller is peakier (for 'ssd' it is sigma, intensity units)."""
+    min_tau: float = 0.02
+    """Robust cost: residuals are truncated at tau = the observed image's standard deviation
+    (its own contrast, so the cost does not depend on the photo's exposure), at least this
+    (intensity units: 2 % of the range, the order of sensor noise plus JPEG error)."""
+    edge_jump: float = 0.1
+    """Robust cost: a pixel whose depth differs from a neighbour's by more than this fraction
+    is an occlusion boundary and gets no weight (a relative, scale-free threshold)."""
+    gain: tuple[float, float] = (0.25, 4.0)
+    """Robust cost: bounds of the fitted exposure gain (a factor 4 either way covers auto-
+    exposure; beyond it, or negative, a match is not a change of exposure)."""
 
 
 def luminance(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
@@ -49,6 +67,8 @@ def luminance(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
 def scores_to_loglik(scores: np.ndarray, config: LikelihoodConfig, temperature: float | None = None) -> np.ndarray:
     """(N, 4) tile scores (ncc, mse, coverage, _) -> (N,) log-likelihoods."""
     t = temperature or config.temperature
+    if config.score == "robust":
+        return -scores[:, 3] / t
     if config.score == "ncc":
         return -(1.0 - scores[:, 0] * scores[:, 2]) / t
     return -scores[:, 1] / (2 * t * t)
@@ -81,15 +101,19 @@ class BatchedLikelihood:
         self.ctx = model.ctx
         self.program = load_compute(self.ctx, "tile_compare", package="localization")
         self._observed = None
+        self.tau = config.min_tau
+        """Truncation of the robust cost's residuals for the current observation."""
         self.focus: Callable[[np.ndarray], None] | None = None
         """focus(eye): adapt the model to views near `eye` (world metres), e.g. re-choose which
         photo textures each face (`localization.photo_texture.PhotoTexture.focus`); None: a
         fixed model. Filters call it when they move to a finer comparison size."""
 
-    def release(self) -> None:
+    def release(self, keep_model: bool = False) -> None:
         """Free the GL objects: the model's renderer (and its atlas framebuffers, hundreds of
-        MB at 384x256 x 128 views), the observation and the compare program."""
-        self.model.release()
+        MB at 384x256 x 128 views; kept when `keep_model`), the observation and the compare
+        program."""
+        if not keep_model:
+            self.model.release()
         self.program.release()
         if self._observed is not None:
             self._observed.release()
@@ -99,6 +123,7 @@ class BatchedLikelihood:
         """The camera image (H, W, 3) uint8 to compare with, at `size` (default config.size)."""
         size = size or self.config.size
         lum = luminance(image, size)
+        self.tau = max(float(lum.std()), self.config.min_tau)
         if self._observed is None or self._observed.size != size:
             if self._observed is not None:
                 self._observed.release()
@@ -127,6 +152,9 @@ class BatchedLikelihood:
         out.bind_to_storage_buffer(0)
         self.program["u_tile"] = size
         self.program["u_cols"] = cols
+        self.program["u_tau"] = self.tau
+        self.program["u_edge_jump"] = self.config.edge_jump
+        self.program["u_gain"] = self.config.gain
         self.program.run(group_x=n)
         scores = np.frombuffer(out.read(), np.float32).reshape(-1, 4).copy()
         out.release()
@@ -138,21 +166,65 @@ class BatchedLikelihood:
         return scores_to_loglik(self.view_scores(clip_from_world, eyes), self.config, temperature)
 
 
+def pixel_weights(depth: np.ndarray, trust: np.ndarray, edge_jump: float) -> np.ndarray:
+    """(h, w) robust-cost weights of a rendered view: its trust (0 where nothing was drawn)
+    times 0 at occlusion boundaries (a 4-neighbour empty or deeper/shallower by more than
+    `edge_jump` of the nearer depth; borders repeat the edge pixel, as the shader clamps)."""
+    d = np.pad(depth, 1, mode="edge")
+    ok = depth > 0
+    for dy, dx in ((0, 1), (0, -1), (1, 0), (-1, 0)):
+        q = d[1 + dy:1 + dy + depth.shape[0], 1 + dx:1 + dx + depth.shape[1]]
+        ok &= (q > 0) & (np.abs(q - depth) <= edge_jump * np.minimum(depth, q))
+    return np.where(ok, trust, 0.0).astype(np.float32)
+
+
+def exposure_fit(r: np.ndarray, o: np.ndarray, w: np.ndarray, bounds: tuple[float, float]) -> tuple[float, float, float]:
+    """Weighted least squares o ~ g r + b over pixels with weights w: (g clamped to bounds,
+    b, the weighted mean of o)."""
+    sw = max(float(w.sum()), 1e-6)
+    mr, mo = float(w @ r) / sw, float(w @ o) / sw
+    var_r = float(w @ (r * r)) / sw - mr * mr
+    g = float(np.clip((float(w @ (r * o)) / sw - mr * mo) / var_r if var_r > 1e-8 else 1.0, *bounds))
+    return g, mo - g * mr, mo
+
+
+def robust_terms(r: np.ndarray, o: np.ndarray, w: np.ndarray, tau: float,
+                 bounds: tuple[float, float]) -> tuple[np.ndarray, np.ndarray, tuple[float, float, float]]:
+    """Per-pixel truncated costs of the null model (a flat image at the weighted mean) and of
+    the exposure-fitted model: (rho_null, rho_model, (gain, offset, mean)). r, o, w flat arrays."""
+    g, b, mo = exposure_fit(r, o, w, bounds)
+    rho_null = np.minimum((o - mo) ** 2 / tau ** 2, 1.0)
+    rho_model = np.minimum((o - g * r - b) ** 2 / tau ** 2, 1.0)
+    return rho_null, rho_model, (g, b, mo)
+
+
+def robust_cost(r: np.ndarray, o: np.ndarray, w: np.ndarray, tau: float, bounds: tuple[float, float]) -> float:
+    """The shader's robust cost of one view: 1 - sum w (rho_null - rho_model) / P over the
+    view's P pixels (r, o, w: (h, w) rendered and observed luminance, weights)."""
+    if w.sum() <= 2.0:
+        return 1.0
+    rn, rm, _ = robust_terms(r.ravel(), o.ravel(), w.ravel(), tau, bounds)
+    return 1.0 - float(w.ravel() @ (rn - rm)) / r.size
+
+
 def reference_tile_scores(renderer: MeshRenderer, cameras: list[Camera], observed: np.ndarray,
-                          light: Light | None = None) -> np.ndarray:
+                          light: Light | None = None,
+                          config: LikelihoodConfig = LikelihoodConfig()) -> np.ndarray:
     """The naive path, for tests and the benchmark: one render + read-back per camera and
     the same statistics in numpy. observed: (h, w) luminance at the cameras' size."""
     out = np.zeros((len(cameras), 4), np.float32)
+    tau = max(float(observed.std()), config.min_tau)
     for k, cam in enumerate(cameras):
         g = renderer.render(cam, light)
         m = g.depth > 0
-        r = (g.color.astype(np.float32) / 255.0 @ np.array([0.299, 0.587, 0.114], np.float32))[m]
-        o = observed[m]
-        n = m.sum()
+        lum = g.color.astype(np.float32) / 255.0 @ np.array([0.299, 0.587, 0.114], np.float32)
+        w = pixel_weights(g.depth, g.trust, config.edge_jump)
+        cost = robust_cost(lum, observed, w, tau, config.gain)
+        r, o, n = lum[m], observed[m], m.sum()
         if n > 1:
             cov = np.mean(r * o) - r.mean() * o.mean()
             ncc = cov / np.sqrt(max(r.var() * o.var(), 1e-12))
-            out[k] = [ncc, np.mean((r - o) ** 2), n / m.size, 0]
+            out[k] = [ncc, np.mean((r - o) ** 2), n / m.size, cost]
         else:
-            out[k] = [0, 1, n / m.size, 0]
+            out[k] = [0, 1, n / m.size, cost]
     return out

@@ -81,7 +81,7 @@ void main() {
         float specular = v_specular * u_light_terms.z * pow(max(dot(n, H), 0.0), u_shininess);
         rgb = albedo * (u_light_terms.x + u_light_terms.y * diffuse) + vec3(specular);
     }
-    f_color = vec4(clamp(rgb, 0.0, 1.0), 1.0);
+    f_color = vec4(clamp(rgb, 0.0, 1.0), v_color.a);  // alpha: the vertex trust (1 unless set)
     f_world = vec4(v_world, 1.0);
     f_normal = vec4(n, 1.0);
     f_depth = v_depth;

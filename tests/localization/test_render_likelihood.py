@@ -39,10 +39,10 @@ def test_array_path_equals_camera_path(setup, gl_ctx):
     np.testing.assert_allclose(lik.view_scores(clip, eyes), lik.tile_scores(cams), atol=1e-6)
 
 
-@pytest.mark.parametrize("score", ["ncc", "ssd"])
+@pytest.mark.parametrize("score", ["ncc", "ssd", "robust"])
 def test_likelihood_peaks_at_the_true_pose(setup, gl_ctx, score):
     office, observed, poses, cams, _ = setup
-    config = LikelihoodConfig(score=score, temperature=0.05 if score == "ncc" else 0.1)
+    config = LikelihoodConfig(score=score, temperature=0.1 if score == "ssd" else 0.05)
     lik = BatchedLikelihood(office.renderer(gl_ctx), config, light=office.light)
     lik.set_observation(observed)
     loglik = scores_to_loglik(lik.tile_scores(cams), config)
@@ -54,14 +54,16 @@ def test_likelihood_peaks_at_the_true_pose(setup, gl_ctx, score):
     assert ll[0] > ll[1] > ll[2]
 
 
-def test_ncc_ignores_exposure(setup, gl_ctx):
+def test_ncc_and_robust_cost_ignore_exposure(setup, gl_ctx):
+    """NCC and the robust cost (exposure fitted, residuals truncated at the photo's own
+    contrast) barely change when the photo is 40 % darker."""
     office, observed, poses, cams, _ = setup
     lik = BatchedLikelihood(office.renderer(gl_ctx), light=office.light)
     lik.set_observation(observed)
-    a = lik.tile_scores(cams[:5])[:, 0]
+    a = lik.tile_scores(cams[:5])
     lik.set_observation((observed * 0.6).astype(np.uint8))
-    b = lik.tile_scores(cams[:5])[:, 0]
-    np.testing.assert_allclose(a, b, atol=0.02)
+    b = lik.tile_scores(cams[:5])
+    np.testing.assert_allclose(a[:, [0, 3]], b[:, [0, 3]], atol=0.03)
 
 
 def test_lean_renderer_batched_equals_reference_and_tracks_full_renderer(setup, gl_ctx):
