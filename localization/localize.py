@@ -2,8 +2,10 @@
 points, the proxy model the filter renders) and poses query photos against it.
 
 Three methods, so each can be compared with the others on the same map: "pnp" (SIFT + RANSAC
-PnP, Foster, Wang & Grupen IV-B), "pf" (the 6-DoF rendered-view particle filter, Heigl et al.
-/ Loc-NeRF) and "hybrid" (the PnP pose as a mixture proposal inside the filter). Their
+PnP, Foster, Wang & Grupen IV-B), "pf" (the rendered-view localiser: a 6-DoF particle filter,
+Heigl et al. / Loc-NeRF, then photometric Gauss-Newton, `render_localizer`) and "hybrid"
+(a strong PnP pose as it is, else the rendered localiser with the PnP pose as one more
+start, `hybrid`). Every result says whether it localised (`confidence`). Their
 leave-one-out evaluation is `localization.eval`.
 """
 
@@ -18,17 +20,16 @@ import numpy as np
 from ibr.camera import Camera
 from ibr.errors import InputError
 from ibr.proxy.proxy_geometry import build_proxy
-from ibr.scene import Scene
 from ibr.proxy.triangulation import Features, sift_features
+from ibr.scene import Scene
+from localization.confidence import Verdict, pnp_verdict
 from localization.feature_localizer import FeatureLocalizerConfig, FeatureMap
 from localization.hybrid import HybridConfig, localize_hybrid
-from localization.lean_model import lean_mesh
-from localization.photo_texture import PhotoTexture
-from localization.pose6_filter import Pose6Filter, Pose6FilterConfig, PriorBox, sample_around
-from localization.render_likelihood import BatchedLikelihood, LikelihoodConfig, likelihood_renderer
+from localization.pose6_filter import PriorBox, sample_around
+from localization.render_localizer import RenderLocalizerConfig, RenderModel, localize_by_rendering
 
 METHODS = ("pf", "pnp", "hybrid")
-MODELS = ("auto", "proxy", "proxy-colors", "mesh")
+MODELS = ("proxy", "proxy-colors", "mesh")
 
 
 class LocalizeError(InputError):
@@ -37,89 +38,90 @@ class LocalizeError(InputError):
 
 @dataclass(frozen=True)
 class LocConfig:
-    """Settings of `SceneLocalizer` and `evaluate_localization`."""
+    """Settings of `SceneLocalizer` and `evaluate_localization`: one configuration for every
+    scene (its scales come from the scene: `render_localizer`)."""
 
-    filter: Pose6FilterConfig = field(default_factory=lambda: Pose6FilterConfig(
-        n_particles=100, n_initial=2000, steps=48, sizes=((48, 32), (96, 64), (192, 128), (384, 256))))
-    """The 6-DoF particle filter (100 particles: llvmpipe renders every particle's view)."""
+    render: RenderLocalizerConfig = field(default_factory=RenderLocalizerConfig)
+    """The rendered-view localiser (filter, alignment, verdict)."""
     hybrid: HybridConfig = field(default_factory=HybridConfig)
-    """Share and spread of the PnP proposal."""
+    """When a PnP pose is taken as it is."""
     features: FeatureLocalizerConfig = field(default_factory=FeatureLocalizerConfig)
     """The feature map and PnP."""
-    model: str = "auto"
+    model: str = "proxy"
     """What the filter renders: "proxy" (the proxy mesh from the photos, `build_proxy`,
-    textured by projecting the photos onto it: `photo_texture`), "proxy-colors" (the same
-    proxy with its vertex colours only), "mesh" (the scene's own, e.g. a synthetic world's)
-    or "auto" (the scene's mesh when it has one, else "proxy")."""
-    max_faces: int = 16000
-    """Triangles of the lean model the filter renders (decimated)."""
+    textured by projecting the photos onto it with a per-face trust), "proxy-colors" (the
+    same proxy with its vertex colours only) or "mesh" (the scene's own, e.g. a synthetic
+    world's: an upper bound that needs the truth)."""
     success_m: float = 0.05
     """A query succeeds when its position error is below this (metres) ..."""
     success_deg: float = 5.0
-    """... and its rotation error below this (degrees)."""
+    """... and its rotation error below this (degrees): the issue's definition of success,
+    a criterion of evaluation, not a setting of the method."""
 
 
 @dataclass
 class LocResult:
-    """cam_from_world (4, 4) estimate (None when PnP found no pose); seconds of the query;
-    n_inliers of PnP (0 when not run or failed)."""
+    """cam_from_world (4, 4) estimate (None when no pose was found); seconds of the query;
+    verdict: localised or not, confidence, reason; n_inliers of PnP (0 when not run or
+    failed); source: "pnp" or "render"; particles (N, 6) and weights (N,) of the filter's
+    last step (None without the filter)."""
 
     cam_from_world: np.ndarray | None
     seconds: float
+    verdict: Verdict
     n_inliers: int = 0
+    source: str = "pnp"
     particles: np.ndarray | None = None
     weights: np.ndarray | None = None
+
+    @property
+    def localized(self) -> bool:
+        return self.verdict.localized
 
 
 class SceneLocalizer:
     """Localises photos against the posed views of `scene` with one method.
 
     features: SIFT features per view of `scene` (optional; extracted here when missing).
-    After construction `mesh` is the model the filter renders (methods pf and hybrid)."""
+    After construction `model` is the `RenderModel` the filter renders (methods pf and
+    hybrid; `model.fine.renderer` draws its view at an estimate)."""
 
     def __init__(self, scene: Scene, method: str, config: LocConfig = LocConfig(),
                  features: list[Features] | None = None, ctx=None):
         if method not in METHODS:
             raise LocalizeError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
+        if config.model not in MODELS:
+            raise LocalizeError(f"unknown model {config.model!r}; use {', '.join(MODELS)}")
         if len(scene) < 2:
             raise LocalizeError(f"scene {scene.name!r} has {len(scene)} views; a map needs at least 2")
         self.scene, self.method, self.config = scene, method, config
-        self.feature_map = self.likelihood = None
+        self.feature_map = self.model = None
         if method in ("pnp", "hybrid"):
             n = config.features.triangulation.n_features
             feats = features or [sift_features(v.image, n) for v in scene.views]
             self.feature_map = FeatureMap.from_features(scene.cameras, feats, config.features)
         if method in ("pf", "hybrid"):
-            self.likelihood = self._likelihood(ctx)
+            self.model = self._render_model(ctx)
 
     def release(self) -> None:
         """Free the filter's GL model (call when done with this localiser)."""
-        if self.likelihood is not None:
-            self.likelihood.release()
-            self.likelihood = None
+        if self.model is not None:
+            self.model.release()
+            self.model = None
 
-    def _use_mesh(self) -> bool:
-        return self.config.model == "mesh" or (self.config.model == "auto" and self.scene.mesh is not None)
-
-    def _likelihood(self, ctx) -> BatchedLikelihood:
-        """The batched likelihood over the model `config.model` names (lean, decimated)."""
-        if self.config.model not in MODELS:
-            raise LocalizeError(f"unknown model {self.config.model!r}; use {', '.join(MODELS)}")
-        if self._use_mesh():
+    def _render_model(self, ctx) -> RenderModel:
+        """The two-level map `config.model` names."""
+        cams, images = self.scene.cameras, [v.image for v in self.scene.views]
+        cfg = self.config.render
+        if self.config.model == "mesh":
             if self.scene.mesh is None:
                 raise LocalizeError(f"scene {self.scene.name!r} has no mesh; use the proxy model")
-            self.mesh = lean_mesh(self.scene.mesh, self.config.max_faces)
             light = getattr(self.scene.world, "light", None)
-            return BatchedLikelihood(likelihood_renderer(self.mesh, ctx), LikelihoodConfig(), light)
-        self.mesh = lean_mesh(build_proxy(self.scene).mesh, self.config.max_faces)
-        if self.config.model == "proxy-colors":
-            return BatchedLikelihood(likelihood_renderer(self.mesh, ctx), LikelihoodConfig())
-        texture = PhotoTexture(self.mesh, self.scene.cameras, [v.image for v in self.scene.views], ctx=ctx)
-        self.mesh = texture.textured_mesh()
-        renderer = likelihood_renderer(self.mesh, ctx)
-        likelihood = BatchedLikelihood(renderer, LikelihoodConfig())
-        likelihood.focus = lambda eye: texture.focus(renderer, eye)
-        return likelihood
+            return RenderModel(self.scene.mesh, cams, images, cfg, textured=False, ctx=ctx, light=light)
+        proxy = build_proxy(self.scene)
+        textured = self.config.model == "proxy"
+        return RenderModel(proxy.mesh, cams, images, cfg, textured=textured,
+                           points=proxy.points if textured else None, ctx=ctx)
 
     def localize(self, image: np.ndarray, camera: Camera, prior: np.ndarray | None,
                  spread_m: float, spread_deg: float, rng: np.random.Generator,
@@ -130,19 +132,24 @@ class SceneLocalizer:
         t = time.perf_counter()
         if self.method == "pnp":
             r = self.feature_map.localize(image, camera)
-            return LocResult(None if r is None else r.cam_from_world, time.perf_counter() - t,
-                             0 if r is None else r.n_inliers)
-        n = max(self.config.filter.n_particles, self.config.filter.n_initial)
-        particles = self._prior_particles(prior, n, spread_m, np.radians(spread_deg), rng)
-        box = None if prior is None else PriorBox(prior, spread_m, np.radians(spread_deg))
-        pf = Pose6Filter(self.likelihood, self.config.filter, rng, box)
+            if r is None:
+                return LocResult(None, time.perf_counter() - t, pnp_verdict(0, 0, self.config.hybrid.strong))
+            verdict = pnp_verdict(r.n_inliers, r.n_matches, self.config.hybrid.strong)
+            return LocResult(r.cam_from_world, time.perf_counter() - t, verdict, r.n_inliers)
+        spread = (spread_m, np.radians(spread_deg))
+        n = max(self.config.render.filter.n_particles, self.config.render.filter.n_initial)
+        particles = self._prior_particles(prior, n, *spread, rng)
+        box = None if prior is None else PriorBox(prior, *spread)
         if self.method == "pf":
-            est, inliers = pf.run(image, camera, particles, on_step=on_step), 0
-        else:
-            res = localize_hybrid(pf, self.feature_map, image, camera, particles, self.config.hybrid,
-                                  on_step=on_step)
-            est, inliers = res.estimate, 0 if res.pnp is None else res.pnp.n_inliers
-        return LocResult(est.cam_from_world, time.perf_counter() - t, inliers, est.particles, est.weights)
+            res = localize_by_rendering(self.model, image, camera, particles, spread, rng, box, on_step=on_step)
+            return LocResult(res.cam_from_world, time.perf_counter() - t, res.verdict, 0, "render",
+                             res.estimate.particles, res.estimate.weights)
+        h = localize_hybrid(self.model, self.feature_map, image, camera, particles, spread, rng, box,
+                            self.config.hybrid, on_step)
+        est = h.render.estimate if h.render is not None else None
+        return LocResult(h.cam_from_world, time.perf_counter() - t, h.verdict,
+                         0 if h.pnp is None else h.pnp.n_inliers, h.source,
+                         None if est is None else est.particles, None if est is None else est.weights)
 
     def _prior_particles(self, prior, n, spread_m, spread_rad, rng) -> np.ndarray:
         if prior is not None:

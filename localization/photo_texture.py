@@ -14,6 +14,11 @@ penalty (unstructured lumigraph rendering) with one view per face, as in view-de
 texture mapping (Debevec et al. 1996). The proxy's depth errors then displace the texture
 least for the views the filter compares.
 
+Given the triangulated points the proxy was built from, each face also carries a trust in
+[0, 1] (`localization.model_trust`: photo-consistency x support by points), the weight the
+robust likelihood gives the pixels it covers; without points every face is trusted (the
+cheap path, e.g. for exporting a textured mesh).
+
 Frames and units: world metres; texture coordinates follow trimesh (v = 0 at the bottom).
 """
 
@@ -29,6 +34,7 @@ from PIL import Image
 
 from ibr.camera import Camera
 from ibr.mesh_renderer import MeshRenderer
+from localization.model_trust import TrustConfig, face_trust
 
 
 @dataclass(frozen=True)
@@ -103,12 +109,17 @@ def atlas_of(images: list[np.ndarray], cell_width: int,
 
 
 def select_views(score: np.ndarray, centroids: np.ndarray, centres: np.ndarray,
-                 eye: np.ndarray | None) -> np.ndarray:
+                 eye: np.ndarray | None, exclude: int | None = None) -> np.ndarray:
     """(F,) photo index per face, -1 where none sees it. eye None: the photo with the highest
     `face_visibility` score. eye (3,) world: the visible photo whose ray to the face is closest
     in angle to the ray from `eye` (Buehler et al.'s angular penalty, unstructured lumigraph
-    rendering), so a proxy's depth errors displace the texture least for views near `eye`."""
+    rendering), so a proxy's depth errors displace the texture least for views near `eye`.
+    exclude: a photo not to use (a map photo judged as if it were a query)."""
     visible = score > 0
+    if exclude is not None:
+        visible = visible.copy()
+        visible[:, exclude] = False
+        score = np.where(visible, score, 0.0)
     if eye is None:
         choice = np.argmax(score, axis=1)
     else:
@@ -125,10 +136,16 @@ class PhotoTexture:
     to a viewpoint. mesh: (world metres); cameras and images ((H, W, 3) uint8): the photos."""
 
     def __init__(self, mesh: trimesh.Trimesh, cameras: list[Camera], images: list[np.ndarray],
-                 config: PhotoTextureConfig = PhotoTextureConfig(), ctx: moderngl.Context | None = None):
+                 config: PhotoTextureConfig = PhotoTextureConfig(), ctx: moderngl.Context | None = None,
+                 points: np.ndarray | None = None, trust_config: TrustConfig = TrustConfig()):
         self.mesh, self.cameras = mesh, list(cameras)
         self.score = face_visibility(mesh, cameras, config.cell_width, config, ctx)
         self.centroids = mesh.triangles.mean(axis=1)
+        self.trust = np.ones(len(mesh.faces))
+        """(F,) each face's trust in [0, 1] (`model_trust.face_trust`; 1 without points)."""
+        if points is not None:
+            self.trust = face_trust(self.centroids, mesh.face_normals, self.score, self.cameras,
+                                    images, np.asarray(points, float).reshape(-1, 3), trust_config)
         self.centres = np.array([c.center for c in cameras])
         self.unseen = np.flatnonzero(~(self.score > 0).any(axis=1))
         palette = np.full((len(self.unseen), 3), 128, np.uint8)
@@ -137,11 +154,12 @@ class PhotoTexture:
             palette = rgb.mean(axis=1).astype(np.uint8)
         self.atlas, self.cells, self.palette_texels = atlas_of(images, config.cell_width, palette)
 
-    def uv(self, eye: np.ndarray | None = None) -> np.ndarray:
+    def uv(self, eye: np.ndarray | None = None, exclude: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(3F, 2) texture coordinates of the split vertices for the photo choice of
-        `select_views(..., eye)` (trimesh convention: v = 0 at the atlas's bottom)."""
+        `select_views(..., eye, exclude)` (trimesh convention: v = 0 at the atlas's bottom)
+        and their trust (3F,): the face's, 0 where no (remaining) photo sees it."""
         H, W = self.atlas.shape[:2]
-        choice = select_views(self.score, self.centroids, self.centres, eye)
+        choice = select_views(self.score, self.centroids, self.centres, eye, exclude)
         tri = self.mesh.triangles
         texel = np.zeros((len(tri), 3, 2))
         for n, cam in enumerate(self.cameras):
@@ -150,15 +168,21 @@ class PhotoTexture:
             uv, _ = cam.project(tri[faces].reshape(-1, 3))  # pixel centres at integers
             texel[faces] = (uv.reshape(-1, 3, 2) + 0.5) * s + [x0, y0]
         texel[self.unseen] = self.palette_texels[:, None]
-        return np.c_[texel[..., 0].ravel() / W, 1.0 - texel[..., 1].ravel() / H]
+        trust = np.repeat(np.where(choice >= 0, self.trust, 0.0), 3)
+        return np.c_[texel[..., 0].ravel() / W, 1.0 - texel[..., 1].ravel() / H], trust
 
     def textured_mesh(self, eye: np.ndarray | None = None) -> trimesh.Trimesh:
-        """The mesh with vertices split per face and textured from the atlas (`uv(eye)`)."""
-        visual = trimesh.visual.TextureVisuals(uv=self.uv(eye), image=Image.fromarray(self.atlas))
+        """The mesh with vertices split per face and textured from the atlas (`uv(eye)`);
+        the vertex attribute `trust` (3F,) carries each face's trust to the renderer."""
+        uv, trust = self.uv(eye)
+        visual = trimesh.visual.TextureVisuals(uv=uv, image=Image.fromarray(self.atlas))
         faces = np.arange(3 * len(self.mesh.faces)).reshape(-1, 3)
-        return trimesh.Trimesh(self.mesh.triangles.reshape(-1, 3), faces, visual=visual, process=False)
+        mesh = trimesh.Trimesh(self.mesh.triangles.reshape(-1, 3), faces, visual=visual, process=False)
+        mesh.vertex_attributes["trust"] = trust
+        return mesh
 
-    def focus(self, renderer: MeshRenderer, eye: np.ndarray) -> None:
-        """Re-choose the faces' photos for views near `eye` (world metres) in a renderer of
-        `textured_mesh()`: only its texture coordinates are rewritten."""
-        renderer.write_uv(self.uv(eye))
+    def focus(self, renderer: MeshRenderer, eye: np.ndarray, exclude: int | None = None) -> None:
+        """Re-choose the faces' photos for views near `eye` (world metres), without photo
+        `exclude` when given, in a renderer of `textured_mesh()`: only its texture
+        coordinates and trust are rewritten."""
+        renderer.write_uv(*self.uv(eye, exclude))

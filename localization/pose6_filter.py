@@ -9,8 +9,16 @@ the posterior's shape, e.g. the ridge along which a narrow camera trades sideway
 yaw, and shrinks with it); weights tempered so that a fixed share of the particles survives;
 systematic resampling (filterpy; not residual, filterpy issue #290); and a random
 perturbation of a fraction of the particles at a wide scale every step, so the filter can
-still leave a wrong basin. Views are compared coarse-to-fine (48x32 up to 384x256 by
-default), and the model may re-focus on the current estimate at each finer size.
+still leave a wrong basin. Views are compared coarse-to-fine at a few small widths (24 and
+48 pixels by default, the height following the photo's aspect), and the model may re-focus
+on the current estimate at each finer width. The filter only finds the basin: the pose is
+then refined by photometric Gauss-Newton (`localization.direct_alignment`) and judged
+(`localization.confidence`), see `localization.render_localizer`.
+
+Scales come from the scene and the photo, not from metres fixed in code: the weight is the
+robust cost of `render_likelihood` (dimensionless); the smallest random walk is a fraction
+of a pixel at the finest width, turned into metres with the scene's typical depth; the
+wide perturbation is a fraction of the prior's own spread.
 
 Particles are (N, 6): camera centre (world, metres) and the rotation vector (radians) of
 `world_from_cam`'s rotation. The model is a `BatchedLikelihood` over a mesh (for photos:
@@ -36,40 +44,37 @@ from localization.render_likelihood import BatchedLikelihood
 class Pose6FilterConfig:
     """Settings of `Pose6Filter`."""
 
-    n_particles: int = 300
-    """Particles (Loc-NeRF uses 300)."""
-    n_initial: int = 1000
+    n_particles: int = 150
+    """Particles after the first step."""
+    n_initial: int = 1500
     """Particles drawn from the prior and weighted at the first step, then resampled down to
-    `n_particles`: a +-1 m / +-30 deg prior is a large 6-D volume to cover."""
-    steps: int = 30
-    """Filter iterations on the one photo."""
+    `n_particles`: a 6-D prior is a large volume to cover."""
+    steps: int = 8
+    """Filter iterations on the one photo (it only has to find the basin: Gauss-Newton
+    refines)."""
     ess_fraction: float = 0.5
     """Annealing: each step's temperature is the one at which the effective sample size of
     the weights is this fraction of the particles (Deutscher et al.'s survival rate)."""
     temperature: tuple[float, float] = (0.2, 0.002)
-    """Bounds of the temperature (NCC units): hottest and coldest allowed."""
+    """Bounds of the temperature (robust-cost units, dimensionless): hottest and coldest."""
     diffusion: float = 0.6
     """Random-walk noise = diffusion x the particles' own spread (6-D covariance of centre
     and rotation offsets), so the noise follows the posterior's shape and shrinks with it."""
-    sigma_floor: tuple[float, float] = (0.002, 0.03)
-    """Smallest random-walk noise (metres, degrees, 1-sigma), added to the covariance."""
-    sigma_wide: tuple[float, float] = (0.15, 4.0)
-    """Noise (metres, degrees) of the perturbed fraction, which keeps exploring."""
+    floor_px: float = 0.5
+    """Smallest random-walk noise: this many pixels at the finest width, as a rotation
+    (px / focal) and as a translation at the scene's typical depth (px x depth / focal)."""
+    wide_fraction: float = 0.15
+    """Noise of the perturbed fraction, as a fraction of the prior's spread (each of metres
+    and radians), which keeps exploring the prior."""
     perturb_fraction: float = 0.1
-    """Fraction of particles perturbed with `sigma_wide` every step."""
-    coverage_ref: float = 0.5
-    """Covered fraction of the view above which the model earns no more credit: a proxy
-    covers only part of a real photo, and rewarding coverage pulls the views onto it."""
-    sizes: tuple[tuple[int, int], ...] = ((48, 32), (96, 64), (192, 128))
-    """Comparison sizes (width, height), coarse to fine, each used for an equal share of the steps."""
+    """Fraction of particles perturbed widely every step."""
+    widths: tuple[int, ...] = (24, 48)
+    """Comparison widths in pixels, coarse to fine, each used for an equal share of the steps."""
 
 
-def ncc_cost(scores: np.ndarray, coverage_ref: float) -> np.ndarray:
-    """(N,) costs from tile scores (N, 4) (ncc, mse, coverage, _): 1 - NCC * min(1, coverage /
-    coverage_ref), in [0, 2], 0 for a perfect match. Views covering less than `coverage_ref`
-    of the frame are discounted (uncovered pixels count as uncorrelated). The tempered
-    log-likelihood is -cost / temperature."""
-    return 1.0 - scores[:, 0] * np.minimum(1.0, scores[:, 2] / coverage_ref)
+def comparison_camera(camera: Camera, width: int) -> Camera:
+    """`camera` scaled to `width` pixels wide, its height following the aspect."""
+    return camera.scaled(width / camera.width)
 
 
 def annealing_temperature(cost: np.ndarray, ess_fraction: float, bounds: tuple[float, float]) -> float:
@@ -187,94 +192,89 @@ def weighted_pose(particles: np.ndarray, weights: np.ndarray) -> np.ndarray:
 
 @dataclass
 class Pose6Estimate:
-    """cam_from_world (4, 4) weighted mean; best (4, 4) highest-weight particle; particles
-    (N, 6) and weights (N,) of the last step; history: per step (mean pose (4, 4))."""
+    """cam_from_world (4, 4) weighted mean; best (4, 4) lowest-cost particle; particles
+    (N, 6), weights (N,) and costs (N,) of the last step; history: per step (mean pose (4, 4))."""
 
     cam_from_world: np.ndarray
     best: np.ndarray
     particles: np.ndarray
     weights: np.ndarray
     history: list[np.ndarray]
+    costs: np.ndarray
 
 
 class Pose6Filter:
-    """Localise one photo: `run(image, camera, particles)`; `proposal(step)` may return extra
-    particles (M, 6) to mix in each step (the hybrid's PnP proposal), weighted like the rest.
-    prior: the support of the prior the particles were drawn from; the posterior is zero
-    outside it, so particles that the random walk carries out of it get no weight (without
-    it, a view that sees little of the model can lure the filter metres away). `sigma` is
-    the current random walk's (metres, radians) 1-sigma scale, for proposals."""
+    """Localise one photo: `run(image, camera, particles)`.
+
+    depth_m: the scene's typical viewing depth (metres, e.g. the median depth of the model
+    from its photos) that turns pixels into metres; spread: the prior's (metres, radians)
+    half-widths, the scale of the wide perturbation; prior: the support of the prior the
+    particles were drawn from (the posterior is zero outside it, so particles the random
+    walk carries out of it get no weight)."""
 
     def __init__(self, likelihood: BatchedLikelihood, config: Pose6FilterConfig, rng: np.random.Generator,
-                 prior: PriorBox | None = None):
+                 depth_m: float, spread: tuple[float, float], prior: PriorBox | None = None):
         self.likelihood, self.config, self.rng, self.prior = likelihood, config, rng, prior
-        self.sigma = (config.sigma_wide[0], np.radians(config.sigma_wide[1]))
+        self.depth_m, self.spread = depth_m, spread
 
-    def size_at(self, k: int) -> tuple[int, int]:
-        """Comparison size at step k: coarse to fine, an equal share of the steps each."""
+    def width_at(self, k: int) -> int:
+        """Comparison width at step k: coarse to fine, an equal share of the steps each."""
         c = self.config
-        return c.sizes[min(k * len(c.sizes) // max(c.steps, 1), len(c.sizes) - 1)]
+        return c.widths[min(k * len(c.widths) // max(c.steps, 1), len(c.widths) - 1)]
 
-    def cost(self, particles: np.ndarray, camera: Camera, size: tuple[int, int]) -> np.ndarray:
-        """(N,) `ncc_cost` of particles against the current observation at `size`."""
+    def cost(self, particles: np.ndarray, camera: Camera, width: int) -> np.ndarray:
+        """(N,) robust costs (`render_likelihood`) of particles against the current
+        observation, which must have been set at `comparison_camera(camera, width)`'s size."""
         m = self.likelihood.model
-        template = camera.scaled(size[0] / camera.width)
-        template = Camera(template.K, size[0], size[1])
+        template = comparison_camera(camera, width)
         clip = template.gl_projection(m.near, m.far) @ cam_from_world_of(particles)
-        return ncc_cost(self.likelihood.view_scores(clip, particles[:, :3]), self.config.coverage_ref)
+        return self.likelihood.view_scores(clip, particles[:, :3])[:, 3].astype(float)
 
-    def _move(self, particles: np.ndarray) -> np.ndarray:
+    def floor(self, camera: Camera) -> tuple[float, float]:
+        """(metres, radians) of `floor_px` at the finest width."""
+        f = comparison_camera(camera, self.config.widths[-1]).K[0, 0]
+        return self.config.floor_px * self.depth_m / f, self.config.floor_px / f
+
+    def _move(self, particles: np.ndarray, floor: tuple[float, float]) -> np.ndarray:
         """Diffuse every particle by the particle spread; perturb a fraction widely."""
         c, rng = self.config, self.rng
-        floor = (c.sigma_floor[0], np.radians(c.sigma_floor[1]))
-        wide = (c.sigma_wide[0], np.radians(c.sigma_wide[1]))
-        cov = pose_covariance(particles)
-        self.sigma = (c.diffusion * np.sqrt(np.trace(cov[:3, :3]) / 3) + floor[0],
-                      c.diffusion * np.sqrt(np.trace(cov[3:, 3:]) / 3) + floor[1])
-        particles = diffuse(particles, c.diffusion, floor, rng, cov)
+        particles = diffuse(particles, c.diffusion, floor, rng)
         jump = rng.random(len(particles)) < c.perturb_fraction
-        particles[jump] = perturb(particles[jump], *wide, rng)
+        particles[jump] = perturb(particles[jump], c.wide_fraction * self.spread[0],
+                                  c.wide_fraction * self.spread[1], rng)
         return particles
 
-    def weights(self, particles: np.ndarray, camera: Camera, size: tuple[int, int],
-                extra_loglik: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
+    def weights(self, particles: np.ndarray, camera: Camera, width: int) -> tuple[np.ndarray, np.ndarray]:
         """(N,) normalised weights: the rendered likelihood tempered to the annealing
-        temperature, zero outside the prior's support, times exp(extra_loglik)."""
+        temperature, zero outside the prior's support; and the (N,) costs."""
         c = self.config
-        cost = self.cost(particles, camera, size)
+        cost = self.cost(particles, camera, width)
         inside = self.prior.contains(particles) if self.prior is not None else np.ones(len(cost), bool)
         if not inside.any():
             inside[:] = True
         ll = np.where(inside, -cost / annealing_temperature(cost[inside], c.ess_fraction, c.temperature), -np.inf)
-        if extra_loglik is not None:
-            ll = ll + extra_loglik(particles)
         w = np.exp(ll - ll.max())
-        return w / w.sum()
+        return w / w.sum(), np.where(inside, cost, np.inf)
 
     def run(self, image: np.ndarray, camera: Camera, particles: np.ndarray,
-            proposal: Callable[[int], np.ndarray | None] | None = None,
-            on_step: Callable[[int, np.ndarray, np.ndarray], None] | None = None,
-            extra_loglik: Callable[[np.ndarray], np.ndarray] | None = None) -> Pose6Estimate:
+            on_step: Callable[[int, np.ndarray, np.ndarray], None] | None = None) -> Pose6Estimate:
         """Iterate the filter on `image` ((H, W, 3) uint8) taken by a camera with the
         intrinsics of `camera` (pose ignored), from initial particles (N, 6) (N may exceed
-        `n_particles`: the first step thins them). proposal(step): particles (M, 6)
-        replacing the last M each step (mixture proposal); extra_loglik(particles): (N,)
-        log-likelihood of another sensor, added to the tempered weights."""
+        `n_particles`: the first step thins them). on_step(k, particles, weights)."""
         c, rng = self.config, self.rng
-        history, size_set = [], None
+        floor = self.floor(camera)
+        history, width_set = [], None
         for k in range(c.steps):
-            size = self.size_at(k)
-            if size != size_set:
-                self.likelihood.set_observation(image, size)
+            width = self.width_at(k)
+            if width != width_set:
+                small = comparison_camera(camera, width)
+                self.likelihood.set_observation(image, (small.width, small.height))
                 if self.likelihood.focus is not None:
                     self.likelihood.focus(particles[:, :3].mean(axis=0))
-                size_set = size
+                width_set = width
             if k > 0:
-                particles = self._move(particles)
-            extra = proposal(k) if proposal else None
-            if extra is not None and len(extra):
-                particles = np.r_[particles[: max(len(particles) - len(extra), 0)], extra][-len(particles):]
-            w = self.weights(particles, camera, size, extra_loglik)
+                particles = self._move(particles, floor)
+            w, cost = self.weights(particles, camera, width)
             history.append(weighted_pose(particles, w))
             if on_step:
                 on_step(k, particles, w)
@@ -283,8 +283,8 @@ class Pose6Filter:
                     particles = particles[systematic_resample(w)]
                 if len(particles) > c.n_particles:  # the wide first sample, thinned
                     particles = particles[rng.choice(len(particles), c.n_particles, replace=False)]
-        best = cam_from_world_of(particles[np.argmax(w)][None])[0]
-        return Pose6Estimate(history[-1], best, particles, w, history)
+        best = cam_from_world_of(particles[np.argmin(cost)][None])[0]
+        return Pose6Estimate(history[-1], best, particles, w, history, cost)
 
 
 def camera_at(camera: Camera, cam_from_world: np.ndarray) -> Camera:
