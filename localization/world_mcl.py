@@ -1,0 +1,229 @@
+"""SE(2) Monte Carlo localisation with rendered views whose settings come from the world:
+the free-space area, the camera's field of view and the measured shape of the likelihood.
+The same code localises in a 6 x 8 m office, a small apartment and a 40 x 40 m courtyard.
+
+Settings (`MCLSettings.for_world`), nav2_amcl's per-map parameters derived instead of set:
+- the likelihood's basin: the half-width of its peak in position (m) and heading (rad),
+  measured on the map itself (`measure_basin`: the map's own views as observations, the
+  likelihood on rings around them; no photos, no truth);
+- the global particle count: `per_basin` particles per basin cell of the free space
+  (area / (pi basin_m^2) cells x pi / basin_rad headings), bounded by `n_cap` (a compute
+  budget, not a size of any world);
+- KLD-sampling bins: half a basin (Fox 2003: the bin is the resolution at which the
+  posterior must be represented, here the resolution the likelihood resolves);
+- roughening: a twentieth of a basin.
+
+The step (`WorldMCL.step`): odometry prediction (Thrun's model), the horizon-free NCC of
+`level_view_likelihood`, tempered so that the effective sample size stays at least
+`ess_min` of the particles (adaptive tempering, as in annealed / SMC samplers: a spread set
+is not collapsed onto a few lucky particles, and two places the likelihood cannot tell
+apart both keep particles until the motion separates them), augmented MCL (w_slow / w_fast
+on the untempered likelihood, nav2_amcl's recovery_alpha_slow / fast) and, when the
+short-term likelihood collapses, a global injection that keeps the current cloud beside
+`n_global` uniform particles (sensor resetting, Lenser & Veloso 2000, without throwing
+away a hypothesis that may still be right). The filter claims convergence only when the
+cloud is unimodal and tight: `converged_mass` of the weight within the success tolerance
+of the estimate.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from localization.level_view_likelihood import LevelViewLikelihood
+from localization.motion_models import wrap_angle
+from localization.particle_filter import (ParticleFilter, ParticleFilterConfig, effective_sample_size,
+                                          sample_free_poses)
+
+
+@dataclass(frozen=True)
+class Basin:
+    """Half-widths of the likelihood's peak: position (m) and heading (rad)."""
+
+    m: float
+    rad: float
+
+
+def measure_basin(lik: LevelViewLikelihood, free, rng: np.random.Generator, n_poses: int = 32,
+                  size: tuple[int, int] = (32, 24)) -> Basin:
+    """The likelihood's peak half-widths, medians over `n_poses` free poses: each pose's
+    rendered view is the observation; the NCC is evaluated on 8 directions at geometric
+    distances (from 1/400 to 1/4 of the free space's extent: scale-free) and on geometric
+    heading offsets; the half-width is where the mean NCC first falls half way from the
+    peak to the median NCC of random poses."""
+    extent = float(np.sqrt(free.area))
+    dists = np.geomspace(extent / 400, extent / 4, 16)
+    angles = np.geomspace(np.radians(0.5), np.pi, 16)
+    dirs = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+    poses = sample_free_poses(free, n_poses, rng)
+    far = sample_free_poses(free, 128, rng)
+    hw_m, hw_rad = [], []
+    for p in poses:
+        obs = lik.render(p[None], size)[0]
+        lik._observed = obs
+        base = float(np.median(lik.ncc(far, size)))
+        ring = np.array([[p[0] + d * np.cos(a), p[1] + d * np.sin(a), p[2]] for d in dists for a in dirs])
+        turn = np.array([[p[0], p[1], p[2] + s * t] for t in angles for s in (-1, 1)])
+        v_ring = lik.ncc(ring, size).reshape(len(dists), len(dirs)).mean(axis=1)
+        v_turn = lik.ncc(turn, size).reshape(len(angles), 2).mean(axis=1)
+        hw_m.append(_half_width(dists, v_ring, 1.0, base))
+        hw_rad.append(_half_width(angles, v_turn, 1.0, base))
+    lik._observed = None
+    return Basin(float(np.median(hw_m)), float(np.median(hw_rad)))
+
+
+def _half_width(x: np.ndarray, v: np.ndarray, peak: float, base: float) -> float:
+    """The first x where v falls below half way from `peak` to `base` (the last x if never)."""
+    below = np.flatnonzero(v < (peak + base) / 2)
+    return float(x[below[0]] if len(below) else x[-1])
+
+
+@dataclass(frozen=True)
+class MCLSettings:
+    """What `for_world` derives; all sizes in metres and radians."""
+
+    basin: Basin
+    n_global: int
+    """Particles of a global (re-)initialisation, and KLD-sampling's ceiling."""
+    kld_bin: tuple[float, float, float]
+    roughening: tuple[float, float, float]
+
+    @classmethod
+    def for_world(cls, free_area_m2: float, basin: Basin, per_basin: float = 0.5,
+                  n_min: int = 1000, n_cap: int = 12000) -> MCLSettings:
+        """per_basin: particles per basin cell (position x heading) of the free space;
+        n_min, n_cap: bounds of the count (a floor for tiny maps; the compute budget of one
+        step, ~3 s at 32x24 on a software renderer)."""
+        cells = free_area_m2 / (np.pi * basin.m**2) * (np.pi / basin.rad)
+        n = int(np.clip(np.ceil(per_basin * cells), n_min, n_cap))
+        half = (basin.m / 2, basin.m / 2, basin.rad / 2)
+        rough = (basin.m / 20, basin.m / 20, basin.rad / 20)
+        return cls(basin, n, half, rough)
+
+    def filter_config(self, **overrides) -> ParticleFilterConfig:
+        """The particle filter's config: counts, bins and roughening from these settings;
+        the global re-initialisation is `WorldMCL`'s (keeps the cloud), so off here."""
+        return replace(ParticleFilterConfig(n_particles=self.n_global, n_max=self.n_global,
+                                            kld_bin=self.kld_bin, roughening=self.roughening,
+                                            reinit_ratio=0.0), **overrides)
+
+
+@dataclass(frozen=True)
+class WorldMCLConfig:
+    coarse_size: tuple[int, int] = (32, 24)
+    """Comparison size (px) until the filter has converged."""
+    fine_size: tuple[int, int] = (64, 48)
+    """Comparison size (px) once it has."""
+    temperature: float = 0.05
+    """Least temperature of the NCC log-likelihood (NCC units, the same in every world)."""
+    ess_min: float = 0.1
+    """Temper so that the effective sample size stays at least this fraction of N."""
+    reinit_ratio: float = 0.1
+    """Inject `n_global` uniform particles when w_fast / w_slow falls below this."""
+    converged_m: float = 0.3
+    """Success tolerance in position (m): set by the caller from what success means (the
+    eval uses the robot's diameter); not a size of the world."""
+    converged_rad: float = np.radians(10.0)
+    """Success tolerance in heading (rad)."""
+    converged_mass: float = 0.9
+    """Claim convergence when this fraction of the weight is within the tolerance of the
+    estimate (one tight mode)."""
+
+
+@dataclass
+class WorldStep:
+    estimate: np.ndarray
+    """(3,) mean of the heaviest mode."""
+    converged: bool
+    """Whether the filter claims one tight mode."""
+    mass: float
+    """Weight within the tolerance of the estimate."""
+    n_particles: int
+    temperature: float
+    size: tuple[int, int]
+    injected: int
+    reset: bool
+    """Whether the likelihood collapsed and `n_global` uniform particles were added."""
+
+
+def ess_temperature(log_w: np.ndarray, loglik: np.ndarray, ess_min: float) -> float:
+    """The least factor t >= 1 such that weighting `log_w` by `loglik / t` keeps the effective
+    sample size at least `ess_min` of N (bisection on log t)."""
+    target = ess_min * len(log_w)
+    if effective_sample_size(log_w + loglik) >= target:
+        return 1.0
+    lo, hi = 0.0, np.log(1e6)
+    for _ in range(30):
+        mid = (lo + hi) / 2
+        if effective_sample_size(log_w + loglik / np.exp(mid)) >= target:
+            hi = mid
+        else:
+            lo = mid
+    return float(np.exp(hi))
+
+
+def mode_estimate(particles: np.ndarray, w: np.ndarray, bin_size) -> np.ndarray:
+    """(3,) weighted mean of the particles in the heaviest KLD bin's neighbourhood (the bin
+    and its neighbours): the estimate of the heaviest mode, not a mean between modes."""
+    keys = np.floor(particles / np.asarray(bin_size)).astype(np.int64)
+    uniq, inv = np.unique(keys, axis=0, return_inverse=True)
+    mass = np.bincount(inv.ravel(), weights=w, minlength=len(uniq))
+    best = uniq[np.argmax(mass)]
+    d = np.abs(keys - best)
+    d[:, 2] = np.minimum(d[:, 2], np.abs(d[:, 2] - int(np.ceil(2 * np.pi / bin_size[2]))))
+    near = (d <= 1).all(axis=1)
+    ww = w[near] / w[near].sum()
+    p = particles[near]
+    return np.array([ww @ p[:, 0], ww @ p[:, 1], np.arctan2(ww @ np.sin(p[:, 2]), ww @ np.cos(p[:, 2]))])
+
+
+class WorldMCL:
+    """pf: the SE(2) particle filter (made from `settings.filter_config()`); lik: the
+    level-view likelihood; settings: the world's settings."""
+
+    def __init__(self, pf: ParticleFilter, lik: LevelViewLikelihood, settings: MCLSettings,
+                 config: WorldMCLConfig = WorldMCLConfig()):
+        self.pf, self.lik, self.settings, self.config = pf, lik, settings, config
+        self.converged = False
+
+    def step(self, odom_before: np.ndarray, odom_after: np.ndarray, image: np.ndarray) -> WorldStep:
+        """Predict with the odometry, weight with the photo, judge, resample."""
+        c, pf = self.config, self.pf
+        pf.predict(odom_before, odom_after)
+        size = c.fine_size if self.converged else c.coarse_size
+        self.lik.set_observation(image, size)
+        fit = -(1.0 - self.lik.ncc(pf.particles, size)) / c.temperature
+        t = ess_temperature(pf.log_w, fit, c.ess_min)
+        pf.update(fit / t, fit_loglik=fit)
+        w = pf.weights
+        est = mode_estimate(pf.particles, w, self.settings.kld_bin)
+        mass = self.mass_near(est)
+        self.converged = mass >= c.converged_mass
+        n = len(pf.particles)
+        reset = pf.w_slow > 0 and pf.w_fast < c.reinit_ratio * pf.w_slow
+        if reset:
+            self._global_injection()
+            injected = self.settings.n_global
+        else:
+            injected = pf.n_injected if pf.resample_if_needed() else 0
+        return WorldStep(est, self.converged, mass, n, t, size, injected, reset)
+
+    def mass_near(self, pose: np.ndarray) -> float:
+        """The weight within the success tolerance of `pose`."""
+        p, c = self.pf.particles, self.config
+        near = (np.hypot(*(p[:, :2] - pose[:2]).T) < c.converged_m) & \
+               (np.abs(wrap_angle(p[:, 2] - pose[2])) < c.converged_rad)
+        return float(self.pf.weights[near].sum())
+
+    def _global_injection(self) -> None:
+        """Keep the current cloud (resampled to at most half the global count) and add
+        `n_global` uniform particles, all equally weighted; restart the averages."""
+        pf = self.pf
+        keep = min(len(pf.particles), self.settings.n_global // 2)
+        idx = pf.rng.choice(len(pf.particles), keep, p=pf.weights)
+        fresh = sample_free_poses(pf.free, self.settings.n_global, pf.rng)
+        pf._set(np.r_[pf.particles[idx], fresh])
+        pf.w_slow = pf.w_fast = 0.0
+        self.converged = False
