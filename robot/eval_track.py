@@ -1,11 +1,19 @@
-"""Tracking evaluation in a synthetic world: a `SimRobot` drives the loop route while the
-render-likelihood particle filter localises it from its photos and odometry alone; the
-simulator's truth is used only to score. Optionally the robot is kidnapped (teleported
+"""Tracking evaluation in any synthetic world: a `SimRobot` drives the world's tour
+(`ibr.synthetic.tour_route`, made from its floor plan) while the world-scaled rendered-view
+particle filter (`localization.world_mcl`) localises it from its photos and odometry alone;
+the simulator's truth is used only to score. Optionally the robot is kidnapped (teleported
 without its sensors knowing) mid-run, and the steps the filter needs to recover counted.
 
+Success is a pose error, the same in every world: within the robot's diameter and
+`tolerance_rad` of heading, held for `hold_steps` steps. The filter's own claim
+("converged": one tight mode) is scored against the truth: a claim with the error beyond
+twice the tolerance is "converged wrong" (a confident wrong answer), counted apart. After
+a kidnapping the filter cannot know of the teleport until a photo disagrees, so its old
+claim is not counted wrong until it first drops it (the steps that takes are reported).
+
 The map the filter renders is the world's ground-truth textured mesh, lit like the photos
-(through the likelihood's lean renderer: trilinear texture filtering where the photos use
-anisotropic): a near-perfect image-based model, so this measures the filter, not the model.
+(through the likelihood's lean renderer): a near-perfect image-based model, so this
+measures the filter, not the model.
 """
 
 from __future__ import annotations
@@ -16,33 +24,31 @@ from dataclasses import dataclass
 import numpy as np
 
 from ibr.camera import Camera
-from ibr.synthetic import SyntheticWorld, loop_route
+from ibr.synthetic import SyntheticWorld, tour_route
+from localization.level_view_likelihood import LevelViewLikelihood
 from localization.motion_models import wrap_angle
-from localization.particle_filter import ParticleFilter, ParticleFilterConfig, sample_free_poses
-from localization.render_likelihood import BatchedLikelihood, LikelihoodConfig, likelihood_renderer
-from localization.render_mcl import RenderMCL, StepReport
+from localization.particle_filter import ParticleFilter
+from localization.render_likelihood import likelihood_renderer
+from localization.world_mcl import MCLSettings, WorldMCL, WorldMCLConfig, WorldStep, measure_basin
 from robot.sim_robot import SimRobot, SimRobotConfig
 from robot.waypoint_follower import follow_waypoints
 
 
 @dataclass(frozen=True)
 class TrackConfig:
-    steps: int = 50
+    steps: int = 60
     """Legs driven (one photo and one filter step per leg)."""
-    kidnap_step: int | None = 20
+    kidnap_step: int | None = 30
     """Teleport the robot before this step (None: never)."""
     global_init: bool = True
     """Start from a uniform prior over the free space (else from the true start pose)."""
-    n_particles: int = 1500
-    """Initial particle count, and the count of a global re-initialisation."""
-    n_max: int = 3000
-    """Most particles KLD-sampling may ask for."""
-    recovered_m: float = 0.25
-    """Localised when the position error is below this (m) ..."""
-    recovered_rad: float = np.radians(10.0)
-    """... and the heading error below this (rad) ..."""
+    n_particles: int | None = None
+    """Global particle count; None: from the world (`MCLSettings.for_world`)."""
+    tolerance_rad: float = np.radians(10.0)
+    """Heading part of the success tolerance (rad); the position part is the robot's
+    diameter, a size of the robot, not of the world."""
     hold_steps: int = 3
-    """... for this many consecutive steps."""
+    """Localised when within the tolerance for this many consecutive steps."""
 
 
 def pose_error(estimate: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
@@ -50,73 +56,126 @@ def pose_error(estimate: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
     return float(np.hypot(*(estimate[:2] - truth[:2]))), float(abs(wrap_angle(estimate[2] - truth[2])))
 
 
-def steps_to_localise(errors: np.ndarray, start: int, config: TrackConfig) -> int | None:
-    """Steps from `start` until the errors (T, 2) stay within bounds for `hold_steps`."""
-    ok = (errors[:, 0] < config.recovered_m) & (errors[:, 1] < config.recovered_rad)
-    for t in range(start, len(ok) - config.hold_steps + 1):
-        if ok[t : t + config.hold_steps].all():
+def steps_to_localise(ok: np.ndarray, start: int, hold: int) -> int | None:
+    """Steps from `start` until `ok` (T,) bool holds for `hold` consecutive steps."""
+    for t in range(start, len(ok) - hold + 1):
+        if ok[t : t + hold].all():
             return t - start
     return None
 
 
+def route_pose(route: np.ndarray, s: float) -> np.ndarray:
+    """(x, y, theta) at arc length `s` (m, wrapped) along the closed polyline `route`,
+    heading along it."""
+    seg = np.diff(route, axis=0)
+    cum = np.r_[0, np.cumsum(np.hypot(*seg.T))]
+    s = s % cum[-1]
+    k = min(int(np.searchsorted(cum, s, side="right")) - 1, len(seg) - 1)
+    f = (s - cum[k]) / max(cum[k + 1] - cum[k], 1e-12)
+    xy = route[k] + f * seg[k]
+    return np.array([*xy, np.arctan2(seg[k, 1], seg[k, 0])])
+
+
+def world_filter(world: SyntheticWorld, robot: SimRobot, rng: np.random.Generator, ctx=None,
+                 n_particles: int | None = None) -> WorldMCL:
+    """The filter for `world`: the level-view likelihood on the world's mesh (lit like the
+    photos, its background where it has no geometry), settings from the measured basin and
+    the free area, success tolerance from the robot's size."""
+    lik = LevelViewLikelihood(likelihood_renderer(world.mesh, ctx, world.background), world.light,
+                              Camera(robot.intrinsics, *robot.image_size), robot.cam_from_robot)
+    settings = MCLSettings.for_world(robot.free.area, measure_basin(lik, robot.free, rng))
+    overrides = {"n_particles": n_particles} if n_particles else {}
+    pf = ParticleFilter(robot.free, settings.filter_config(**overrides), rng)
+    config = WorldMCLConfig(converged_m=2 * robot.config.radius_m)
+    return WorldMCL(pf, lik, settings, config)
+
+
 def run_tracking(world: SyntheticWorld, seed: int, config: TrackConfig = TrackConfig(),
                  on_step: Callable | None = None, ctx=None) -> dict:
-    """One seeded run. `on_step(step, report, robot, photo, mcl)` is called after each
-    filter step (for logging). Returns per-step errors and the localisation figures."""
+    """One seeded run from a random point of the world's tour. `on_step(step, report,
+    robot, photo, mcl)` is called after each filter step (for logging). Returns per-step
+    errors and the localisation figures."""
     rng = np.random.default_rng(seed)
-    route = loop_route(world)
-    start = np.array([*route[0], 0.0])
+    route = tour_route(world)
+    length = float(np.hypot(*np.diff(route, axis=0).T).sum())
+    s0 = rng.uniform(0, length)
+    start = route_pose(route, s0)
     robot = SimRobot(world, SimRobotConfig(), np.random.default_rng(rng.integers(2**32)), ctx, start)
-    pf = ParticleFilter(robot.free, ParticleFilterConfig(n_particles=config.n_particles, n_max=config.n_max),
-                        np.random.default_rng(rng.integers(2**32)))
+    mcl = world_filter(world, robot, np.random.default_rng(rng.integers(2**32)), ctx, config.n_particles)
     if config.global_init:
-        pf.init_uniform()
+        mcl.pf.init_uniform()
     else:
-        pf.init_gaussian(start, [0.05, 0.05, np.radians(2)])
-    likelihood = BatchedLikelihood(likelihood_renderer(world.mesh, ctx, world.background),
-                                   LikelihoodConfig(), world.light)
-    mcl = RenderMCL(pf, likelihood, Camera(robot.intrinsics, *robot.image_size), robot.cam_from_robot)
-    errors, odom = [], robot.odometry()
-    legs = follow_waypoints(robot, np.tile(route, (100, 1)), start, rng=np.random.default_rng(seed))
+        mcl.pf.init_gaussian(start, [0.05, 0.05, np.radians(2)])
+    legs = _drive_from(robot, route, s0, length, seed)
+    errors, claims, odom = [], [], robot.odometry()
     for step in range(config.steps):
         if step == config.kidnap_step:
-            robot.kidnap(_far_pose(robot, rng))
-            legs = _drive_on_from(robot, route, seed)
+            robot.kidnap(_far_route_pose(robot, route, length, rng))
+            legs = _drive_from(robot, route, None, length, seed + 1)
         if next(legs, None) is None:
             break
         photo = robot.capture()
-        report: StepReport = mcl.step(odom, photo.odometry, photo.image)
+        report: WorldStep = mcl.step(odom, photo.odometry, photo.image)
         odom = photo.odometry
         errors.append(pose_error(report.estimate, robot.true_pose))
+        claims.append(report.converged)
         if on_step:
             on_step(step, report, robot, photo, mcl)
-    errors = np.array(errors)
-    converged = steps_to_localise(errors, 0, config)
-    k = config.kidnap_step
-    recovery = steps_to_localise(errors, k, config) if k is not None and k < len(errors) else None
-    tracked = errors[converged:k] if converged is not None else errors[:0]
+    return _score(np.array(errors), np.array(claims, bool), config, mcl, seed)
+
+
+def _score(errors: np.ndarray, claims: np.ndarray, config: TrackConfig, mcl: WorldMCL, seed: int) -> dict:
+    """The run's figures from per-step errors (T, 2) and convergence claims (T,)."""
+    tol_m, tol_rad = mcl.config.converged_m, config.tolerance_rad
+    within = (errors[:, 0] < tol_m) & (errors[:, 1] < tol_rad)
+    wrong = claims & ((errors[:, 0] > 2 * tol_m) | (errors[:, 1] > 2 * tol_rad))
+    k = config.kidnap_step if config.kidnap_step is not None and config.kidnap_step < len(errors) else None
+    noticed = None
+    if k is not None:  # the old claim stands until a photo disagrees: not counted wrong till then
+        dropped = np.flatnonzero(~claims[k:])
+        noticed = int(dropped[0]) if len(dropped) else None
+        wrong[k : k + (noticed if noticed is not None else len(errors) - k)] = False
+    good = claims & within
+    converged = steps_to_localise(good, 0, config.hold_steps)
+    end = k if k is not None else len(errors)
+    recovery = steps_to_localise(good, k, config.hold_steps) if k is not None else None
+    tracked = []
+    if converged is not None and converged < end:
+        tracked.append(errors[converged:end])
+    if recovery is not None:
+        tracked.append(errors[k + recovery:])
+    tracked = np.concatenate(tracked) if tracked else errors[:0]
+    s = mcl.settings
     return {"seed": seed, "steps_to_converge": converged, "steps_to_recover": recovery,
+            "steps_to_notice_kidnap": noticed,
+            "converged_wrong_steps": int(wrong.sum()),
             "median_tracking_error_m": float(np.median(tracked[:, 0])) if len(tracked) else None,
             "median_tracking_error_deg": float(np.degrees(np.median(tracked[:, 1]))) if len(tracked) else None,
+            "settings": {"n_global": s.n_global, "basin_m": round(s.basin.m, 4),
+                         "basin_deg": round(float(np.degrees(s.basin.rad)), 2),
+                         "tolerance_m": tol_m, "tolerance_deg": float(np.degrees(tol_rad))},
             "error_m": errors[:, 0].round(4).tolist(),
-            "error_deg": np.degrees(errors[:, 1]).round(3).tolist()}
+            "error_deg": np.degrees(errors[:, 1]).round(3).tolist(),
+            "claimed": claims.astype(int).tolist()}
 
 
-def _drive_on_from(robot: SimRobot, route: np.ndarray, seed: int):
-    """The drive after a kidnapping: the route again, from the waypoint nearest the new
-    pose. The simulated driver (compass-aided dead reckoning, not the filter) is restarted
-    at the true pose, as the robot's route-following would be in a scene it drives
-    through; otherwise it steers by its old belief into a wall and stalls there, facing
-    a blank close-up no localiser could place. The filter is told nothing: it gets the
-    odometry, which does not see the teleport, and the photos."""
-    k = int(np.argmin(np.hypot(*(route - robot.true_pose[:2]).T)))
-    waypoints = np.tile(np.r_[route[k:], route[1:k + 1]], (100, 1))
-    return follow_waypoints(robot, waypoints, robot.true_pose, rng=np.random.default_rng(seed + 1))
+def _drive_from(robot: SimRobot, route: np.ndarray, s: float | None, length: float, seed: int):
+    """Legs along the tour from arc length `s` (None: the route point nearest the robot),
+    round and round. The simulated driver (compass-aided dead reckoning, not the filter)
+    starts at the true pose, as the robot's route-following would after a kidnapping in a
+    scene it drives through; the filter is told nothing (the odometry does not see a
+    teleport)."""
+    if s is None:
+        dense = np.array([route_pose(route, t)[:2] for t in np.linspace(0, length, 400, endpoint=False)])
+        s = float(np.argmin(np.hypot(*(dense - robot.true_pose[:2]).T))) * length / 400
+    ahead = np.array([route_pose(route, s + t)[:2] for t in np.arange(0.5, 20 * length, 0.5)])
+    return follow_waypoints(robot, ahead, robot.true_pose, rng=np.random.default_rng(seed))
 
 
-def _far_pose(robot: SimRobot, rng: np.random.Generator, min_m: float = 2.0) -> np.ndarray:
-    """A random free pose at least `min_m` from where the robot is."""
-    while True:
-        pose = sample_free_poses(robot.free, 1, rng)[0]
-        if np.hypot(*(pose[:2] - robot.true_pose[:2])) >= min_m:
-            return pose
+def _far_route_pose(robot: SimRobot, route: np.ndarray, length: float, rng: np.random.Generator) -> np.ndarray:
+    """A pose on the tour (heading along it) farther from the robot than half the tour's
+    points are: far in the world's own terms, whatever its size."""
+    cand = np.array([route_pose(route, t) for t in rng.uniform(0, length, 64)])
+    d = np.hypot(*(cand[:, :2] - robot.true_pose[:2]).T)
+    far = cand[d >= np.median(d)]
+    return far[rng.integers(len(far))]

@@ -1,5 +1,6 @@
-"""`ibrnav eval-track`: render-likelihood particle-filter tracking in a synthetic world,
-with global localisation and a kidnapping, over seeded trials (JSON out, rerun for trial 0)."""
+"""`ibrnav eval-track`: render-likelihood particle-filter tracking in any synthetic world
+(office, courtyard, apartment) along the world's tour, with global localisation and a
+kidnapping, over seeded trials (JSON out, rerun for trial 0)."""
 
 from __future__ import annotations
 
@@ -34,6 +35,7 @@ def _logger(world):
         cam = robot_camera(report.estimate, robot.intrinsics, robot.image_size, robot.cam_from_robot)
         viz.log_observed_vs_rendered(photo.image, world.photograph(cam))
         rr.log("plots/particles", rr.Scalars(report.n_particles))
+        rr.log("plots/converged_mass", rr.Scalars(report.mass))
     return on_step
 
 
@@ -47,8 +49,7 @@ def run(args: argparse.Namespace) -> int:
     spec = parse_scene_spec(args.scene, synthetic_only=True, allowed=("seed",))
     world = make_world(spec.world, spec.seed(args.world_seed))
     config = TrackConfig(steps=args.steps, kidnap_step=None if args.kidnap_step < 0 else args.kidnap_step,
-                         global_init=not args.known_start, n_particles=args.particles,
-                         n_max=args.max_particles)
+                         global_init=not args.known_start, n_particles=args.particles)
     recording.rerun_setup(args, "ibrnav_eval_track", "eval_track.rrd")
     ibr_viz.log_mesh("world/map/mesh", world.mesh)
     trials = []
@@ -58,10 +59,11 @@ def run(args: argparse.Namespace) -> int:
         res["seconds"] = time.perf_counter() - t
         trials.append(res)
         log.info(f"trial {i + 1}/{args.trials}: converged after {res['steps_to_converge']} steps, "
-                 f"recovered after {res['steps_to_recover']} steps, {res['seconds']:.0f} s")
+                 f"recovered after {res['steps_to_recover']} steps, {res['converged_wrong_steps']} "
+                 f"steps claimed converged on a wrong pose, {res['seconds']:.0f} s")
     recording.rerun_teardown(args)
     summary = _summary(trials, config)
-    out = {"scene": args.scene, "config": {k: v for k, v in vars(config).items()}, **summary, "trials": trials}
+    out = {"scene": args.scene, "world_seed": world.seed, "config": dict(vars(config)), **summary, "trials": trials}
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=2) + "\n")
     print(json.dumps(summary, indent=2))
@@ -76,7 +78,10 @@ def _summary(trials: list[dict], config: TrackConfig) -> dict:
                "converged_rate": float(np.mean([c is not None for c in conv])),
                "median_steps_to_converge": float(np.median([c for c in conv if c is not None])) if any(
                    c is not None for c in conv) else None,
-               "median_tracking_error_m": float(np.median(track)) if track else None}
+               "converged_wrong_trials": int(sum(t["converged_wrong_steps"] > 0 for t in trials)),
+               "median_tracking_error_m": float(np.median(track)) if track else None,
+               "worst_tracking_error_m": float(np.max(track)) if track else None,
+               "settings": trials[0]["settings"] if trials else None}
     if config.kidnap_step is not None:
         summary["recovered_rate"] = float(np.mean([r is not None for r in rec]))
         done = [r for r in rec if r is not None]
@@ -93,8 +98,8 @@ def register(subparsers) -> None:
     p.add_argument("--steps", type=int, default=d.steps, help="legs (photos) per trial")
     p.add_argument("--kidnap-step", type=int, default=d.kidnap_step, help="teleport before this step (-1: never)")
     p.add_argument("--particles", type=int, default=d.n_particles,
-                   help="initial particle count (and of a global re-initialisation)")
-    p.add_argument("--max-particles", type=int, default=d.n_max, help="KLD-sampling's ceiling")
+                   help="global particle count (default: from the world's free area and the "
+                        "measured likelihood basin)")
     p.add_argument("--known-start", action="store_true", help="start from the true pose, not a uniform prior")
     p.add_argument("--seed", type=int, default=0, help="seed of trial 0 (trial i uses seed + i)")
     p.add_argument("--world-seed", type=int, default=0)
