@@ -40,13 +40,21 @@ from localization.particle_filter import (ParticleFilter, ParticleFilterConfig, 
 
 @dataclass(frozen=True)
 class Basin:
-    """Half-widths of the likelihood's peak: position (m) and heading (rad)."""
+    """The likelihood's peak: median half-widths in position (m) and heading (rad) over the
+    sampled poses. (Medians: a mean of 1 / cell size would be dominated by the few poses
+    that face a wall at arm's length, whose peaks are a few cm wide.)"""
 
     m: float
     rad: float
 
+    @property
+    def cells_per_m2(self) -> float:
+        """Basin cells per m^2 of free space: a cell is a disc of radius `m` times a heading
+        sector of 2 `rad`."""
+        return 1.0 / (np.pi * self.m**2) * (np.pi / self.rad)
 
-def measure_basin(lik: LevelViewLikelihood, free, rng: np.random.Generator, n_poses: int = 32,
+
+def measure_basin(lik: LevelViewLikelihood, free, rng: np.random.Generator, n_poses: int = 48,
                   size: tuple[int, int] = (32, 24)) -> Basin:
     """The likelihood's peak half-widths, medians over `n_poses` free poses: each pose's
     rendered view is the observation; the NCC is evaluated on 8 directions at geometric
@@ -54,12 +62,13 @@ def measure_basin(lik: LevelViewLikelihood, free, rng: np.random.Generator, n_po
     heading offsets; the half-width is where the mean NCC first falls half way from the
     peak to the median NCC of random poses."""
     extent = float(np.sqrt(free.area))
-    dists = np.geomspace(extent / 400, extent / 4, 16)
-    angles = np.geomspace(np.radians(0.5), np.pi, 16)
+    dists = np.geomspace(extent / 400, extent / 4, 20)
+    angles = np.geomspace(np.radians(0.5), np.pi, 20)
     dirs = np.linspace(0, 2 * np.pi, 8, endpoint=False)
     poses = sample_free_poses(free, n_poses, rng)
     far = sample_free_poses(free, 128, rng)
     hw_m, hw_rad = [], []
+    # NCC is invariant to the observation's scale: the map's own view stands in for a photo
     for p in poses:
         obs = lik.render(p[None], size)[0]
         lik._observed = obs
@@ -75,9 +84,17 @@ def measure_basin(lik: LevelViewLikelihood, free, rng: np.random.Generator, n_po
 
 
 def _half_width(x: np.ndarray, v: np.ndarray, peak: float, base: float) -> float:
-    """The first x where v falls below half way from `peak` to `base` (the last x if never)."""
-    below = np.flatnonzero(v < (peak + base) / 2)
-    return float(x[below[0]] if len(below) else x[-1])
+    """Where v first falls below half way from `peak` to `base`, interpolated in log x
+    between the grid points (x[0] if at once, the last x if never)."""
+    half = (peak + base) / 2
+    below = np.flatnonzero(v < half)
+    if not len(below):
+        return float(x[-1])
+    i = below[0]
+    if i == 0:
+        return float(x[0])
+    f = (v[i - 1] - half) / max(v[i - 1] - v[i], 1e-9)
+    return float(np.exp(np.log(x[i - 1]) + f * (np.log(x[i]) - np.log(x[i - 1]))))
 
 
 @dataclass(frozen=True)
@@ -96,8 +113,7 @@ class MCLSettings:
         """per_basin: particles per basin cell (position x heading) of the free space;
         n_min, n_cap: bounds of the count (a floor for tiny maps; the compute budget of one
         step, ~3 s at 32x24 on a software renderer)."""
-        cells = free_area_m2 / (np.pi * basin.m**2) * (np.pi / basin.rad)
-        n = int(np.clip(np.ceil(per_basin * cells), n_min, n_cap))
+        n = int(np.clip(np.ceil(per_basin * free_area_m2 * basin.cells_per_m2), n_min, n_cap))
         half = (basin.m / 2, basin.m / 2, basin.rad / 2)
         rough = (basin.m / 20, basin.m / 20, basin.rad / 20)
         return cls(basin, n, half, rough)
@@ -129,7 +145,14 @@ class WorldMCLConfig:
     """Success tolerance in heading (rad)."""
     converged_mass: float = 0.9
     """Claim convergence when this fraction of the weight is within the tolerance of the
-    estimate (one tight mode)."""
+    estimate (one tight mode) ..."""
+    probe_fraction: float = 0.25
+    """... and none of `probe_fraction` x n_global uniform poses, scored at the coarse size
+    at every step, matches the photo as well as the estimate does away from it (those that
+    do join the cloud as other modes: a tight cloud is not evidence that no other place
+    fits; mixture MCL's samples from the measurement, Thrun et al. 2001) ..."""
+    confirm_steps: int = 2
+    """... at this many consecutive steps."""
 
 
 @dataclass
@@ -187,6 +210,8 @@ class WorldMCL:
                  config: WorldMCLConfig = WorldMCLConfig()):
         self.pf, self.lik, self.settings, self.config = pf, lik, settings, config
         self.converged = False
+        self.streak = 0
+        """Consecutive steps with one tight mode and no rival."""
 
     def step(self, odom_before: np.ndarray, odom_after: np.ndarray, image: np.ndarray) -> WorldStep:
         """Predict with the odometry, weight with the photo, judge, resample."""
@@ -200,7 +225,9 @@ class WorldMCL:
         w = pf.weights
         est = mode_estimate(pf.particles, w, self.settings.kld_bin)
         mass = self.mass_near(est)
-        self.converged = mass >= c.converged_mass
+        rivals = self._rivals(image, est, t)
+        self.streak = self.streak + 1 if mass >= c.converged_mass and not rivals else 0
+        self.converged = self.streak >= c.confirm_steps
         n = len(pf.particles)
         reset = pf.w_slow > 0 and pf.w_fast < c.reinit_ratio * pf.w_slow
         if reset:
@@ -209,6 +236,26 @@ class WorldMCL:
         else:
             injected = pf.n_injected if pf.resample_if_needed() else 0
         return WorldStep(est, self.converged, mass, n, t, size, injected, reset)
+
+    def _rivals(self, image: np.ndarray, est: np.ndarray, t: float) -> bool:
+        """Whether uniform probe poses away from the estimate fit the photo at least as well
+        as the estimate (coarse size). Those that do are added to the cloud, weighted as the
+        heaviest particle times their likelihood ratio to the estimate (at temperature t)."""
+        c, pf = self.config, self.pf
+        probes = sample_free_poses(pf.free, max(1, int(c.probe_fraction * self.settings.n_global)), pf.rng)
+        away = (np.hypot(*(probes[:, :2] - est[:2]).T) > 2 * c.converged_m) | \
+               (np.abs(wrap_angle(probes[:, 2] - est[2])) > 2 * c.converged_rad)
+        probes = probes[away]
+        self.lik.set_observation(image, c.coarse_size)
+        v = self.lik.ncc(np.r_[est[None], probes], c.coarse_size)
+        better = v[1:] >= v[0]
+        if not better.any():
+            return False
+        extra = (v[1:][better] - v[0]) / (c.temperature * t) + pf.log_w.max()
+        log_w = np.r_[pf.log_w, extra]
+        pf.particles = np.r_[pf.particles, probes[better]]
+        pf.log_w = log_w - np.logaddexp.reduce(log_w)
+        return True
 
     def mass_near(self, pose: np.ndarray) -> float:
         """The weight within the success tolerance of `pose`."""
@@ -226,4 +273,4 @@ class WorldMCL:
         fresh = sample_free_poses(pf.free, self.settings.n_global, pf.rng)
         pf._set(np.r_[pf.particles[idx], fresh])
         pf.w_slow = pf.w_fast = 0.0
-        self.converged = False
+        self.converged, self.streak = False, 0

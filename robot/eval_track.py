@@ -19,7 +19,7 @@ measures the filter, not the model.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -76,6 +76,9 @@ def route_pose(route: np.ndarray, s: float) -> np.ndarray:
     return np.array([*xy, np.arctan2(seg[k, 1], seg[k, 0])])
 
 
+_BASINS: dict = {}
+
+
 def world_filter(world: SyntheticWorld, robot: SimRobot, rng: np.random.Generator, ctx=None,
                  n_particles: int | None = None) -> WorldMCL:
     """The filter for `world`: the level-view likelihood on the world's mesh (lit like the
@@ -83,9 +86,13 @@ def world_filter(world: SyntheticWorld, robot: SimRobot, rng: np.random.Generato
     the free area, success tolerance from the robot's size."""
     lik = LevelViewLikelihood(likelihood_renderer(world.mesh, ctx, world.background), world.light,
                               Camera(robot.intrinsics, *robot.image_size), robot.cam_from_robot)
-    settings = MCLSettings.for_world(robot.free.area, measure_basin(lik, robot.free, rng))
-    overrides = {"n_particles": n_particles} if n_particles else {}
-    pf = ParticleFilter(robot.free, settings.filter_config(**overrides), rng)
+    key = (world.name, world.seed, robot.free.area)
+    if key not in _BASINS:  # a property of the map and the camera: measured once per world
+        _BASINS[key] = measure_basin(lik, robot.free, np.random.default_rng(world.seed))
+    settings = MCLSettings.for_world(robot.free.area, _BASINS[key])
+    if n_particles:
+        settings = replace(settings, n_global=n_particles)
+    pf = ParticleFilter(robot.free, settings.filter_config(), rng)
     config = WorldMCLConfig(converged_m=2 * robot.config.radius_m)
     return WorldMCL(pf, lik, settings, config)
 
@@ -136,8 +143,8 @@ def _score(errors: np.ndarray, claims: np.ndarray, config: TrackConfig, mcl: Wor
         noticed = int(dropped[0]) if len(dropped) else None
         wrong[k : k + (noticed if noticed is not None else len(errors) - k)] = False
     good = claims & within
-    converged = steps_to_localise(good, 0, config.hold_steps)
     end = k if k is not None else len(errors)
+    converged = steps_to_localise(good[:end], 0, config.hold_steps)
     recovery = steps_to_localise(good, k, config.hold_steps) if k is not None else None
     tracked = []
     if converged is not None and converged < end:
