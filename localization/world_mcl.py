@@ -146,7 +146,9 @@ class WorldMCLConfig:
     converged_mass: float = 0.9
     """Claim convergence when this fraction of the weight is within the tolerance of the
     estimate (one tight mode) ..."""
-    probe_fraction: float = 0.25
+    probe_size: tuple[int, int] = (16, 12)
+    """Comparison size (px) of the uniform probes: cheap, and the widest basin."""
+    probe_fraction: float = 1.0
     """... and none of `probe_fraction` x n_global uniform poses, scored at the coarse size
     at every step, matches the photo as well as the estimate does away from it (those that
     do join the cloud as other modes: a tight cloud is not evidence that no other place
@@ -187,6 +189,17 @@ def ess_temperature(log_w: np.ndarray, loglik: np.ndarray, ess_min: float) -> fl
     return float(np.exp(hi))
 
 
+def local_ring(pose: np.ndarray, step_m: float, step_rad: float) -> np.ndarray:
+    """(20, 3) poses around `pose`: 8 directions at one and two `step_m` (same heading), and
+    the heading turned by one and two `step_rad` either way."""
+    a = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+    out = [[pose[0] + r * np.cos(b), pose[1] + r * np.sin(b), pose[2]] for r in (step_m, 2 * step_m) for b in a]
+    out += [[pose[0], pose[1], pose[2] + k * step_rad] for k in (-2, -1, 1, 2)]
+    out = np.array(out)
+    out[:, 2] = wrap_angle(out[:, 2])
+    return out
+
+
 def mode_estimate(particles: np.ndarray, w: np.ndarray, bin_size) -> np.ndarray:
     """(3,) weighted mean of the particles in the heaviest KLD bin's neighbourhood (the bin
     and its neighbours): the estimate of the heaviest mode, not a mean between modes."""
@@ -225,7 +238,7 @@ class WorldMCL:
         w = pf.weights
         est = mode_estimate(pf.particles, w, self.settings.kld_bin)
         mass = self.mass_near(est)
-        rivals = self._rivals(image, est, t)
+        rivals = self._rivals(image, est, t, size)
         self.streak = self.streak + 1 if mass >= c.converged_mass and not rivals else 0
         self.converged = self.streak >= c.confirm_steps
         n = len(pf.particles)
@@ -237,23 +250,37 @@ class WorldMCL:
             injected = pf.n_injected if pf.resample_if_needed() else 0
         return WorldStep(est, self.converged, mass, n, t, size, injected, reset)
 
-    def _rivals(self, image: np.ndarray, est: np.ndarray, t: float) -> bool:
-        """Whether uniform probe poses away from the estimate fit the photo at least as well
-        as the estimate (coarse size). Those that do are added to the cloud, weighted as the
-        heaviest particle times their likelihood ratio to the estimate (at temperature t)."""
+    def _rivals(self, image: np.ndarray, est: np.ndarray, t: float, size: tuple[int, int]) -> bool:
+        """Whether other poses fit the photo at least as well as the estimate: a ring at one
+        and two tolerances around it (at this step's comparison `size`: the estimate must be
+        the likelihood's local maximum at the scale of the tolerance, not a tight cloud
+        that slid off it), and `probe_fraction` x n_global uniform poses farther away (at
+        `probe_size`, those that pass checked at `size`). Those that fit better join the cloud, weighted as the heaviest
+        particle times their likelihood ratio to the estimate (at temperature t)."""
         c, pf = self.config, self.pf
+        ring = local_ring(est, c.converged_m, c.converged_rad)
+        found = self._join_better(est, ring, size, t)  # the observation is set at `size`
         probes = sample_free_poses(pf.free, max(1, int(c.probe_fraction * self.settings.n_global)), pf.rng)
         away = (np.hypot(*(probes[:, :2] - est[:2]).T) > 2 * c.converged_m) | \
                (np.abs(wrap_angle(probes[:, 2] - est[2])) > 2 * c.converged_rad)
-        probes = probes[away]
-        self.lik.set_observation(image, c.coarse_size)
-        v = self.lik.ncc(np.r_[est[None], probes], c.coarse_size)
+        self.lik.set_observation(image, c.probe_size)
+        v = self.lik.ncc(np.r_[est[None], probes[away]], c.probe_size)
+        screened = probes[away][v[1:] >= v[0]]  # the few that pass are checked at `size`
+        if not len(screened):
+            return found
+        self.lik.set_observation(image, size)
+        return self._join_better(est, screened, size, t) or found
+
+    def _join_better(self, est: np.ndarray, poses: np.ndarray, size: tuple[int, int], t: float) -> bool:
+        """Add the poses whose NCC at `size` is at least the estimate's to the cloud."""
+        pf, c = self.pf, self.config
+        v = self.lik.ncc(np.r_[est[None], poses], size)
         better = v[1:] >= v[0]
         if not better.any():
             return False
         extra = (v[1:][better] - v[0]) / (c.temperature * t) + pf.log_w.max()
         log_w = np.r_[pf.log_w, extra]
-        pf.particles = np.r_[pf.particles, probes[better]]
+        pf.particles = np.r_[pf.particles, poses[better]]
         pf.log_w = log_w - np.logaddexp.reduce(log_w)
         return True
 
