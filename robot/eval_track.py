@@ -128,12 +128,23 @@ def run_tracking(world: SyntheticWorld, seed: int, config: TrackConfig = TrackCo
         claims.append(report.converged)
         if on_step:
             on_step(step, report, robot, photo, mcl)
-    return _score(np.array(errors), np.array(claims, bool), config, mcl, seed)
+    s = mcl.settings
+    return {"seed": seed, **score_run(np.array(errors), np.array(claims, bool), config, mcl.config.converged_m),
+            "settings": {"n_global": s.n_global, "basin_m": round(s.basin.m, 4),
+                         "basin_deg": round(float(np.degrees(s.basin.rad)), 2),
+                         "tolerance_m": mcl.config.converged_m,
+                         "tolerance_deg": float(np.degrees(config.tolerance_rad))}}
 
 
-def _score(errors: np.ndarray, claims: np.ndarray, config: TrackConfig, mcl: WorldMCL, seed: int) -> dict:
-    """The run's figures from per-step errors (T, 2) and convergence claims (T,)."""
-    tol_m, tol_rad = mcl.config.converged_m, config.tolerance_rad
+def score_run(errors: np.ndarray, claims: np.ndarray, config: TrackConfig, tol_m: float) -> dict:
+    """A run's figures from per-step errors (T, 2) (m, rad) and the filter's convergence
+    claims (T,): steps to converge (before the kidnapping) and to recover (after it), each
+    the first step from which a claim with the error within (tol_m, config.tolerance_rad)
+    holds for `hold_steps`; the steps claimed with the error beyond twice the tolerance
+    (not counted: after the kidnapping, until the filter first drops its old claim, whose
+    delay is `steps_to_notice_kidnap`); tracking errors over the steps after convergence
+    and after recovery."""
+    tol_rad = config.tolerance_rad
     within = (errors[:, 0] < tol_m) & (errors[:, 1] < tol_rad)
     wrong = claims & ((errors[:, 0] > 2 * tol_m) | (errors[:, 1] > 2 * tol_rad))
     k = config.kidnap_step if config.kidnap_step is not None and config.kidnap_step < len(errors) else None
@@ -152,15 +163,11 @@ def _score(errors: np.ndarray, claims: np.ndarray, config: TrackConfig, mcl: Wor
     if recovery is not None:
         tracked.append(errors[k + recovery:])
     tracked = np.concatenate(tracked) if tracked else errors[:0]
-    s = mcl.settings
-    return {"seed": seed, "steps_to_converge": converged, "steps_to_recover": recovery,
+    return {"steps_to_converge": converged, "steps_to_recover": recovery,
             "steps_to_notice_kidnap": noticed,
             "converged_wrong_steps": int(wrong.sum()),
             "median_tracking_error_m": float(np.median(tracked[:, 0])) if len(tracked) else None,
             "median_tracking_error_deg": float(np.degrees(np.median(tracked[:, 1]))) if len(tracked) else None,
-            "settings": {"n_global": s.n_global, "basin_m": round(s.basin.m, 4),
-                         "basin_deg": round(float(np.degrees(s.basin.rad)), 2),
-                         "tolerance_m": tol_m, "tolerance_deg": float(np.degrees(tol_rad))},
             "error_m": errors[:, 0].round(4).tolist(),
             "error_deg": np.degrees(errors[:, 1]).round(3).tolist(),
             "claimed": claims.astype(int).tolist()}

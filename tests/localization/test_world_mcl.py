@@ -1,0 +1,86 @@
+"""World-scaled SE(2) MCL: the horizon-free comparison, the settings derived from the
+world, adaptive tempering and the mode estimate."""
+
+import numpy as np
+import pytest
+
+from ibr.camera import Camera
+from ibr.synthetic import make_world
+from localization.level_view_likelihood import LevelViewLikelihood, ncc_rows
+from localization.particle_filter import effective_sample_size, sample_free_poses
+from localization.render_likelihood import likelihood_renderer
+from localization.world_mcl import Basin, MCLSettings, ess_temperature, measure_basin, mode_estimate
+from robot.protocol import robot_camera
+from robot.sim_robot import SimRobot, SimRobotConfig
+
+
+def test_horizon_free_ncc_ignores_the_row_profile_every_level_view_shares():
+    rng = np.random.default_rng(0)
+    obs = rng.random((24, 32))
+    horizon = np.linspace(1.0, -1.0, 24)[:, None]  # sky above, ground below
+    assert ncc_rows(np.stack([obs + horizon, 0.5 * obs]), obs) == pytest.approx([1.0, 1.0], abs=1e-6)
+    shifted = np.roll(obs, 3, axis=1) + horizon
+    assert ncc_rows(shifted[None], obs)[0] < 0.5
+
+
+def _courtyard(gl_ctx, seed=3):
+    world = make_world("courtyard", seed)
+    robot = SimRobot(world, SimRobotConfig(), np.random.default_rng(0), gl_ctx, world.start_pose(np.random.default_rng(0)))
+    lik = LevelViewLikelihood(likelihood_renderer(world.mesh, gl_ctx, world.background), world.light,
+                              Camera(robot.intrinsics, *robot.image_size), robot.cam_from_robot)
+    return world, robot, lik
+
+
+def test_views_show_the_sky_where_the_model_is_empty_and_the_truth_wins_outdoors(gl_ctx):
+    """The batched read-back equals the renderer's own per-camera render (luminance, the
+    background where nothing is drawn); in the courtyard, where half the view is sky, the
+    true pose scores above 1000 random poses of the site."""
+    world, robot, lik = _courtyard(gl_ctx)
+    pose = np.array([12.0, 5.0, np.pi])  # on the site, looking at the buildings
+    cam = robot_camera(pose, robot.intrinsics, robot.image_size, robot.cam_from_robot).scaled(0.1)
+    g = lik.model.render(cam, world.light)
+    ref = g.color.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32) / 255
+    got = lik.render(pose[None], (32, 24))[0]
+    assert (g.depth <= 0).mean() > 0.2  # sky in view
+    assert np.abs(got - ref).mean() < 0.01
+    lik.set_observation(world.photograph(robot_camera(pose, robot.intrinsics, robot.image_size,
+                                                      robot.cam_from_robot), gl_ctx), (32, 24))
+    others = sample_free_poses(robot.free, 1000, np.random.default_rng(1))
+    others = others[np.hypot(*(others[:, :2] - pose[:2]).T) > 1.0]
+    v = lik.ncc(np.r_[pose[None], others], (32, 24))
+    assert v[0] > v[1:].max()
+
+
+def test_the_basin_is_wider_outdoors_and_the_settings_follow_it(gl_ctx, office):
+    """The measured peak is wider in the courtyard (surfaces metres away) than in the
+    office; counts scale with free area / basin cells, within their bounds; bins are half
+    a basin."""
+    _, robot, lik = _courtyard(gl_ctx)
+    wide = measure_basin(lik, robot.free, np.random.default_rng(0), n_poses=8)
+    orobot = SimRobot(office, SimRobotConfig(), np.random.default_rng(0), gl_ctx, (0.0, -2.5, 0.0))
+    olik = LevelViewLikelihood(likelihood_renderer(office.mesh, gl_ctx, office.background), office.light,
+                               Camera(orobot.intrinsics, *orobot.image_size), orobot.cam_from_robot)
+    narrow = measure_basin(olik, orobot.free, np.random.default_rng(0), n_poses=8)
+    assert wide.m > 1.5 * narrow.m
+    s = MCLSettings.for_world(100.0, Basin(0.5, 0.1), per_basin=1.0, n_min=10, n_cap=10**6)
+    assert s.n_global == int(np.ceil(100.0 / (np.pi * 0.25) * (np.pi / 0.1)))
+    assert MCLSettings.for_world(1e6, Basin(0.5, 0.1), n_cap=5000).n_global == 5000
+    assert s.kld_bin == pytest.approx((0.25, 0.25, 0.05))
+
+
+def test_ess_tempering_keeps_the_requested_share_of_particles():
+    rng = np.random.default_rng(0)
+    log_w = np.full(1000, -np.log(1000))
+    loglik = -rng.random(1000) * 200  # a sharp likelihood: untempered, a few particles win
+    t = ess_temperature(log_w, loglik, 0.1)
+    assert t > 1 and effective_sample_size(log_w + loglik / t) >= 100
+    assert effective_sample_size(log_w + loglik / (0.9 * t)) < 100  # the least such factor
+    assert ess_temperature(log_w, np.zeros(1000), 0.1) == 1.0
+
+
+def test_mode_estimate_is_the_heavier_mode_not_the_mean_between():
+    rng = np.random.default_rng(0)
+    a = np.c_[rng.normal(0, 0.02, (300, 2)), rng.normal(0, 0.01, 300)]
+    b = np.c_[rng.normal(4, 0.02, (200, 2)), rng.normal(0, 0.01, 200)]
+    est = mode_estimate(np.r_[a, b], np.full(500, 1 / 500), (0.2, 0.2, 0.1))
+    assert np.hypot(*est[:2]) < 0.05
