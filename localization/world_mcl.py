@@ -54,7 +54,7 @@ class Basin:
         return 1.0 / (np.pi * self.m**2) * (np.pi / self.rad)
 
 
-def measure_basin(lik: LevelViewLikelihood, free, rng: np.random.Generator, n_poses: int = 48,
+def measure_basin(lik: LevelViewLikelihood, free, rng: np.random.Generator, n_poses: int = 32,
                   size: tuple[int, int] = (32, 24)) -> Basin:
     """The likelihood's peak half-widths, medians over `n_poses` free poses: each pose's
     rendered view is the observation; the NCC is evaluated on 8 directions at geometric
@@ -66,7 +66,7 @@ def measure_basin(lik: LevelViewLikelihood, free, rng: np.random.Generator, n_po
     angles = np.geomspace(np.radians(0.5), np.pi, 20)
     dirs = np.linspace(0, 2 * np.pi, 8, endpoint=False)
     poses = sample_free_poses(free, n_poses, rng)
-    far = sample_free_poses(free, 128, rng)
+    far = sample_free_poses(free, 64, rng)
     hw_m, hw_rad = [], []
     # NCC is invariant to the observation's scale: the map's own view stands in for a photo
     for p in poses:
@@ -109,10 +109,10 @@ class MCLSettings:
 
     @classmethod
     def for_world(cls, free_area_m2: float, basin: Basin, per_basin: float = 0.5,
-                  n_min: int = 1000, n_cap: int = 12000) -> MCLSettings:
+                  n_min: int = 1000, n_cap: int = 6000) -> MCLSettings:
         """per_basin: particles per basin cell (position x heading) of the free space;
         n_min, n_cap: bounds of the count (a floor for tiny maps; the compute budget of one
-        step, ~3 s at 32x24 on a software renderer)."""
+        step, ~1.5 s at 32x24 on a software renderer)."""
         n = int(np.clip(np.ceil(per_basin * free_area_m2 * basin.cells_per_m2), n_min, n_cap))
         half = (basin.m / 2, basin.m / 2, basin.rad / 2)
         rough = (basin.m / 20, basin.m / 20, basin.rad / 20)
@@ -148,7 +148,7 @@ class WorldMCLConfig:
     estimate (one tight mode) ..."""
     probe_size: tuple[int, int] = (16, 12)
     """Comparison size (px) of the uniform probes: cheap, and the widest basin."""
-    probe_fraction: float = 1.0
+    probe_fraction: float = 0.25
     """... and none of `probe_fraction` x n_global uniform poses, scored at the coarse size
     at every step, matches the photo as well as the estimate does away from it (those that
     do join the cloud as other modes: a tight cloud is not evidence that no other place
