@@ -33,7 +33,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from localization.level_view_likelihood import LevelViewLikelihood
-from localization.motion_models import wrap_angle
+from localization.motion_models import sample_motion_model_odometry, wrap_angle
 from localization.particle_filter import (ParticleFilter, ParticleFilterConfig, effective_sample_size,
                                           sample_free_poses)
 
@@ -155,6 +155,8 @@ class WorldMCLConfig:
     fits; mixture MCL's samples from the measurement, Thrun et al. 2001) ..."""
     confirm_steps: int = 2
     """... at this many consecutive steps."""
+    max_rivals: int = 64
+    """Most rival poses remembered from step to step (the best-fitting)."""
 
 
 @dataclass
@@ -225,11 +227,15 @@ class WorldMCL:
         self.converged = False
         self.streak = 0
         """Consecutive steps with one tight mode and no rival."""
+        self.rivals = np.zeros((0, 3))
+        """Poses away from the estimate that fit as well as poses within the tolerance."""
 
     def step(self, odom_before: np.ndarray, odom_after: np.ndarray, image: np.ndarray) -> WorldStep:
         """Predict with the odometry, weight with the photo, judge, resample."""
         c, pf = self.config, self.pf
         pf.predict(odom_before, odom_after)
+        if len(self.rivals):
+            self.rivals = sample_motion_model_odometry(self.rivals, odom_before, odom_after, pf.config.alphas, pf.rng)
         size = c.fine_size if self.converged else c.coarse_size
         self.lik.set_observation(image, size)
         fit = -(1.0 - self.lik.ncc(pf.particles, size)) / c.temperature
@@ -238,7 +244,8 @@ class WorldMCL:
         w = pf.weights
         est = mode_estimate(pf.particles, w, self.settings.kld_bin)
         mass = self.mass_near(est)
-        rivals = self._rivals(image, est, t, size)
+        rivals = self._remembered_rivals(est, t, size)  # the observation is set at `size`
+        rivals = self._rivals(image, est, t, size) or rivals
         self.streak = self.streak + 1 if mass >= c.converged_mass and not rivals else 0
         self.converged = self.streak >= c.confirm_steps
         n = len(pf.particles)
@@ -251,38 +258,70 @@ class WorldMCL:
         return WorldStep(est, self.converged, mass, n, t, size, injected, reset)
 
     def _rivals(self, image: np.ndarray, est: np.ndarray, t: float, size: tuple[int, int]) -> bool:
-        """Whether other poses fit the photo at least as well as the estimate: a ring at one
-        and two tolerances around it (at this step's comparison `size`: the estimate must be
-        the likelihood's local maximum at the scale of the tolerance, not a tight cloud
-        that slid off it), and `probe_fraction` x n_global uniform poses farther away (at
-        `probe_size`, those that pass checked at `size`). Those that fit better join the cloud, weighted as the heaviest
-        particle times their likelihood ratio to the estimate (at temperature t)."""
+        """Whether other poses fit the photo as well as the estimate does:
+        - near: a ring at one and two tolerances around it (at this step's comparison
+          `size`) fits better than the estimate (it is not the likelihood's local maximum at
+          the tolerance's scale: a tight cloud that slid off the peak);
+        - far: some of `probe_fraction` x n_global uniform poses beyond two tolerances fit
+          at least as well as the ring at one tolerance does (the median of those poses):
+          another place is as good as a pose within the tolerance, so a claim would not be
+          a claim about this place. Screened at `probe_size`, the few that pass checked at
+          `size`.
+        Rivals join the cloud, weighted as the heaviest particle times their likelihood
+        ratio to the estimate (at temperature t)."""
         c, pf = self.config, self.pf
         ring = local_ring(est, c.converged_m, c.converged_rad)
-        found = self._join_better(est, ring, size, t)  # the observation is set at `size`
+        first = np.r_[np.arange(8), 17, 18]  # the ring at one tolerance
+        v = self.lik.ncc(np.r_[est[None], ring], size)  # the observation is set at `size`
+        near = v[1:] > v[0]
+        self._join(ring[near], v[1:][near] - v[0], t)
+        bar = float(np.median(v[1:][first]))
         probes = sample_free_poses(pf.free, max(1, int(c.probe_fraction * self.settings.n_global)), pf.rng)
         away = (np.hypot(*(probes[:, :2] - est[:2]).T) > 2 * c.converged_m) | \
                (np.abs(wrap_angle(probes[:, 2] - est[2])) > 2 * c.converged_rad)
+        probes = probes[away]
         self.lik.set_observation(image, c.probe_size)
-        v = self.lik.ncc(np.r_[est[None], probes[away]], c.probe_size)
-        screened = probes[away][v[1:] >= v[0]]  # the few that pass are checked at `size`
-        if not len(screened):
-            return found
-        self.lik.set_observation(image, size)
-        return self._join_better(est, screened, size, t) or found
+        vp = self.lik.ncc(np.r_[est[None], ring[first], probes], c.probe_size)
+        screened = probes[vp[11:] >= np.median(vp[1:11])]
+        far = False
+        if len(screened):
+            self.lik.set_observation(image, size)
+            vs = self.lik.ncc(screened, size)
+            rival = vs >= bar
+            self._join(screened[rival], vs[rival] - v[0], t)
+            self.rivals = np.r_[self.rivals, screened[rival]]
+            far = bool(rival.any())
+        return bool(near.any()) or far
 
-    def _join_better(self, est: np.ndarray, poses: np.ndarray, size: tuple[int, int], t: float) -> bool:
-        """Add the poses whose NCC at `size` is at least the estimate's to the cloud."""
-        pf, c = self.pf, self.config
-        v = self.lik.ncc(np.r_[est[None], poses], size)
-        better = v[1:] >= v[0]
-        if not better.any():
+    def _remembered_rivals(self, est: np.ndarray, t: float, size: tuple[int, int]) -> bool:
+        """Re-score the rivals found at earlier steps (moved by the odometry like the
+        particles) against this step's bar, the ring at one tolerance around `est`: those
+        that still fit as well stay rivals (and rejoin the cloud), the others are dropped.
+        A place the likelihood cannot tell from the estimate thus blocks the claim until
+        the motion tells them apart, whether or not this step's uniform probes hit it."""
+        c = self.config
+        if not len(self.rivals):
             return False
-        extra = (v[1:][better] - v[0]) / (c.temperature * t) + pf.log_w.max()
-        log_w = np.r_[pf.log_w, extra]
-        pf.particles = np.r_[pf.particles, poses[better]]
+        away = (np.hypot(*(self.rivals[:, :2] - est[:2]).T) > 2 * c.converged_m) | \
+               (np.abs(wrap_angle(self.rivals[:, 2] - est[2])) > 2 * c.converged_rad)
+        self.rivals = self.rivals[away]
+        ring = local_ring(est, c.converged_m, c.converged_rad)[np.r_[np.arange(8), 17, 18]]
+        v = self.lik.ncc(np.r_[est[None], ring, self.rivals], size)
+        keep = v[11:] >= np.median(v[1:11])
+        order = np.argsort(-v[11:][keep])[: c.max_rivals]
+        self.rivals = self.rivals[keep][order]
+        self._join(self.rivals, v[11:][keep][order] - v[0], t)
+        return bool(len(self.rivals))
+
+    def _join(self, poses: np.ndarray, dv: np.ndarray, t: float) -> None:
+        """Add poses to the cloud, weighted as the heaviest particle times exp(dv / (T t))
+        (dv: their NCC less the estimate's)."""
+        if not len(poses):
+            return
+        pf = self.pf
+        log_w = np.r_[pf.log_w, dv / (self.config.temperature * t) + pf.log_w.max()]
+        pf.particles = np.r_[pf.particles, poses]
         pf.log_w = log_w - np.logaddexp.reduce(log_w)
-        return True
 
     def mass_near(self, pose: np.ndarray) -> float:
         """The weight within the success tolerance of `pose`."""
@@ -301,3 +340,4 @@ class WorldMCL:
         pf._set(np.r_[pf.particles[idx], fresh])
         pf.w_slow = pf.w_fast = 0.0
         self.converged, self.streak = False, 0
+        self.rivals = np.zeros((0, 3))

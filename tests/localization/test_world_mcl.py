@@ -84,3 +84,48 @@ def test_mode_estimate_is_the_heavier_mode_not_the_mean_between():
     b = np.c_[rng.normal(4, 0.02, (200, 2)), rng.normal(0, 0.01, 200)]
     est = mode_estimate(np.r_[a, b], np.full(500, 1 / 500), (0.2, 0.2, 0.1))
     assert np.hypot(*est[:2]) < 0.05
+
+
+class _TwoPlaces:
+    """A likelihood with a known answer: the NCC is a bump of `width_m` at each of two
+    places (heading 0), of heights `heights`; the image is ignored."""
+
+    def __init__(self, places, heights, width_m=0.3):
+        self.places, self.heights, self.width = np.asarray(places, float), heights, width_m
+
+    def set_observation(self, image, size):
+        pass
+
+    def ncc(self, poses, size):
+        poses = np.atleast_2d(poses)
+        out = np.zeros(len(poses))
+        for p, h in zip(self.places, self.heights):
+            d2 = ((poses[:, :2] - p) ** 2).sum(1) + (np.angle(np.exp(1j * poses[:, 2])) / 0.2) ** 2 * self.width**2
+            out = np.maximum(out, h * np.exp(-d2 / (2 * self.width**2)))
+        return out
+
+
+def _filter(lik, seed=0):
+    import shapely
+
+    from localization.particle_filter import ParticleFilter
+    from localization.world_mcl import WorldMCL
+
+    free = shapely.box(0, 0, 4, 2)
+    settings = MCLSettings.for_world(free.area, Basin(0.3, 0.2), per_basin=4.0, n_cap=4000)
+    pf = ParticleFilter(free, settings.filter_config(), np.random.default_rng(seed))
+    pf.init_uniform()
+    return WorldMCL(pf, lik, settings)
+
+
+def test_two_places_the_likelihood_cannot_tell_apart_get_no_claim():
+    """Two equally good places: whichever the cloud gathers on, the probes find the other
+    as good, so the filter never claims convergence; when one place fits better, it
+    converges there."""
+    still = np.zeros(3)
+    mcl = _filter(_TwoPlaces([[1, 1], [3, 1]], [0.9, 0.9]))
+    steps = [mcl.step(still, still, None) for _ in range(8)]
+    assert not any(s.converged for s in steps)
+    mcl = _filter(_TwoPlaces([[1, 1], [3, 1]], [0.9, 0.4]))
+    steps = [mcl.step(still, still, None) for _ in range(8)]
+    assert steps[-1].converged and np.hypot(*(steps[-1].estimate[:2] - [1, 1])) < 0.15
