@@ -155,6 +155,9 @@ class WorldMCLConfig:
     fits; mixture MCL's samples from the measurement, Thrun et al. 2001) ..."""
     confirm_steps: int = 2
     """... at this many consecutive steps."""
+    rival_nats: float = 3.0
+    """A far pose is a rival when its log-likelihood is within this of the estimate's (at
+    the least temperature: a likelihood ratio of at least e^-3 = 5 %)."""
     max_rivals: int = 64
     """Most rival poses remembered from step to step (the best-fitting)."""
 
@@ -262,32 +265,30 @@ class WorldMCL:
         - near: a ring at one and two tolerances around it (at this step's comparison
           `size`) fits better than the estimate (it is not the likelihood's local maximum at
           the tolerance's scale: a tight cloud that slid off the peak);
-        - far: some of `probe_fraction` x n_global uniform poses beyond two tolerances fit
-          at least as well as the ring at one tolerance does (the median of those poses):
-          another place is as good as a pose within the tolerance, so a claim would not be
-          a claim about this place. Screened at `probe_size`, the few that pass checked at
-          `size`.
+        - far: some of `probe_fraction` x n_global uniform poses beyond two tolerances have
+          a likelihood within `rival_nats` of the estimate's (another place the filter's
+          own likelihood cannot rule out). Screened at `probe_size`, the few that pass
+          checked at `size`.
         Rivals join the cloud, weighted as the heaviest particle times their likelihood
         ratio to the estimate (at temperature t)."""
         c, pf = self.config, self.pf
         ring = local_ring(est, c.converged_m, c.converged_rad)
-        first = np.r_[np.arange(8), 17, 18]  # the ring at one tolerance
         v = self.lik.ncc(np.r_[est[None], ring], size)  # the observation is set at `size`
         near = v[1:] > v[0]
         self._join(ring[near], v[1:][near] - v[0], t)
-        bar = float(np.median(v[1:][first]))
+        margin = c.rival_nats * c.temperature
         probes = sample_free_poses(pf.free, max(1, int(c.probe_fraction * self.settings.n_global)), pf.rng)
         away = (np.hypot(*(probes[:, :2] - est[:2]).T) > 2 * c.converged_m) | \
                (np.abs(wrap_angle(probes[:, 2] - est[2])) > 2 * c.converged_rad)
         probes = probes[away]
         self.lik.set_observation(image, c.probe_size)
-        vp = self.lik.ncc(np.r_[est[None], ring[first], probes], c.probe_size)
-        screened = probes[vp[11:] >= np.median(vp[1:11])]
+        vp = self.lik.ncc(np.r_[est[None], probes], c.probe_size)
+        screened = probes[vp[1:] >= vp[0] - margin]
         far = False
         if len(screened):
             self.lik.set_observation(image, size)
             vs = self.lik.ncc(screened, size)
-            rival = vs >= bar
+            rival = vs >= v[0] - margin
             self._join(screened[rival], vs[rival] - v[0], t)
             self.rivals = np.r_[self.rivals, screened[rival]]
             far = bool(rival.any())
@@ -295,8 +296,8 @@ class WorldMCL:
 
     def _remembered_rivals(self, est: np.ndarray, t: float, size: tuple[int, int]) -> bool:
         """Re-score the rivals found at earlier steps (moved by the odometry like the
-        particles) against this step's bar, the ring at one tolerance around `est`: those
-        that still fit as well stay rivals (and rejoin the cloud), the others are dropped.
+        particles): those still within `rival_nats` of the estimate stay rivals (and rejoin
+        the cloud), the others are dropped.
         A place the likelihood cannot tell from the estimate thus blocks the claim until
         the motion tells them apart, whether or not this step's uniform probes hit it."""
         c = self.config
@@ -305,12 +306,11 @@ class WorldMCL:
         away = (np.hypot(*(self.rivals[:, :2] - est[:2]).T) > 2 * c.converged_m) | \
                (np.abs(wrap_angle(self.rivals[:, 2] - est[2])) > 2 * c.converged_rad)
         self.rivals = self.rivals[away]
-        ring = local_ring(est, c.converged_m, c.converged_rad)[np.r_[np.arange(8), 17, 18]]
-        v = self.lik.ncc(np.r_[est[None], ring, self.rivals], size)
-        keep = v[11:] >= np.median(v[1:11])
-        order = np.argsort(-v[11:][keep])[: c.max_rivals]
+        v = self.lik.ncc(np.r_[est[None], self.rivals], size)
+        keep = v[1:] >= v[0] - c.rival_nats * c.temperature
+        order = np.argsort(-v[1:][keep])[: c.max_rivals]
         self.rivals = self.rivals[keep][order]
-        self._join(self.rivals, v[11:][keep][order] - v[0], t)
+        self._join(self.rivals, v[1:][keep][order] - v[0], t)
         return bool(len(self.rivals))
 
     def _join(self, poses: np.ndarray, dv: np.ndarray, t: float) -> None:
