@@ -35,7 +35,7 @@ def test_route_pose_walks_the_closed_tour():
 def test_global_localisation_in_the_courtyard(gl_ctx):
     """The suite's fast sample of the sweep: from a uniform prior over the 40 x 40 m site,
     the filter converges on the true pose, and never claims a wrong one."""
-    res = run_tracking(make_world("courtyard", 0), seed=0, config=TrackConfig(steps=12, kidnap_step=None), ctx=gl_ctx)
+    res = run_tracking(make_world("courtyard", 1), seed=101, config=TrackConfig(steps=9, kidnap_step=None), ctx=gl_ctx)
     assert res["steps_to_converge"] is not None
     assert res["converged_wrong_steps"] == 0
     assert res["median_tracking_error_m"] < 0.15
