@@ -25,7 +25,8 @@ def test_horizon_free_ncc_ignores_the_row_profile_every_level_view_shares():
 
 def _courtyard(gl_ctx, seed=3):
     world = make_world("courtyard", seed)
-    robot = SimRobot(world, SimRobotConfig(), np.random.default_rng(0), gl_ctx, world.start_pose(np.random.default_rng(0)))
+    start = world.start_pose(np.random.default_rng(0))
+    robot = SimRobot(world, SimRobotConfig(), np.random.default_rng(0), gl_ctx, start)
     lik = LevelViewLikelihood(likelihood_renderer(world.mesh, gl_ctx, world.background), world.light,
                               Camera(robot.intrinsics, *robot.image_size), robot.cam_from_robot)
     return world, robot, lik
