@@ -156,8 +156,9 @@ class WorldMCLConfig:
     confirm_steps: int = 2
     """... at this many consecutive steps."""
     rival_nats: float = 3.0
-    """A far pose is a rival when its log-likelihood is within this of the estimate's (at
-    the least temperature: a likelihood ratio of at least e^-3 = 5 %)."""
+    """A far pose is a rival while its log-likelihood, summed over the photos since it was
+    found, is within this of the estimate's (at the least temperature: a likelihood ratio
+    of at least e^-3 = 5 %)."""
     max_rivals: int = 64
     """Most rival poses remembered from step to step (the best-fitting)."""
 
@@ -231,7 +232,9 @@ class WorldMCL:
         self.streak = 0
         """Consecutive steps with one tight mode and no rival."""
         self.rivals = np.zeros((0, 3))
-        """Poses away from the estimate that fit as well as poses within the tolerance."""
+        """Poses away from the estimate that the likelihood cannot rule out."""
+        self.rival_lr = np.zeros(0)
+        """Each rival's summed log-likelihood ratio to the estimate since it was found."""
 
     def step(self, odom_before: np.ndarray, odom_after: np.ndarray, image: np.ndarray) -> WorldStep:
         """Predict with the odometry, weight with the photo, judge, resample."""
@@ -291,13 +294,16 @@ class WorldMCL:
             rival = vs >= v[0] - margin
             self._join(screened[rival], vs[rival] - v[0], t)
             self.rivals = np.r_[self.rivals, screened[rival]]
+            self.rival_lr = np.r_[self.rival_lr, np.zeros(int(rival.sum()))]  # the test starts
             far = bool(rival.any())
         return bool(near.any()) or far
 
     def _remembered_rivals(self, est: np.ndarray, t: float, size: tuple[int, int]) -> bool:
         """Re-score the rivals found at earlier steps (moved by the odometry like the
-        particles): those still within `rival_nats` of the estimate stay rivals (and rejoin
-        the cloud), the others are dropped.
+        particles) and add this photo's log-likelihood ratio to the estimate to each one's
+        running sum since it was found (a sequential likelihood-ratio test, Wald 1945: a
+        rival must explain the photos along the drive, not one photo): those whose sum is
+        still within `rival_nats` stay rivals (and rejoin the cloud), the others are dropped.
         A place the likelihood cannot tell from the estimate thus blocks the claim until
         the motion tells them apart, whether or not this step's uniform probes hit it."""
         c = self.config
@@ -305,12 +311,23 @@ class WorldMCL:
             return False
         away = (np.hypot(*(self.rivals[:, :2] - est[:2]).T) > 2 * c.converged_m) | \
                (np.abs(wrap_angle(self.rivals[:, 2] - est[2])) > 2 * c.converged_rad)
-        self.rivals = self.rivals[away]
-        v = self.lik.ncc(np.r_[est[None], self.rivals], size)
-        keep = v[1:] >= v[0] - c.rival_nats * c.temperature
-        order = np.argsort(-v[1:][keep])[: c.max_rivals]
-        self.rivals = self.rivals[keep][order]
-        self._join(self.rivals, v[1:][keep][order] - v[0], t)
+        self.rivals, self.rival_lr = self.rivals[away], self.rival_lr[away]
+        # each rival first climbs to the best of itself and six neighbours half a
+        # tolerance away (it stands for a place, not for one pose that odometry noise moves)
+        steps = np.array([[0, 0, 0], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]) \
+            * np.array([c.converged_m, c.converged_m, c.converged_rad]) / 2
+        cand = (self.rivals[:, None, :] + steps[None]).reshape(-1, 3)
+        vc = self.lik.ncc(np.r_[est[None], cand], size)
+        v0, vc = vc[0], vc[1:].reshape(len(self.rivals), len(steps))
+        best = np.argmax(vc, axis=1)
+        self.rivals = cand.reshape(len(self.rivals), len(steps), 3)[np.arange(len(best)), best]
+        self.rivals[:, 2] = wrap_angle(self.rivals[:, 2])
+        v = np.r_[v0, vc[np.arange(len(best)), best]]
+        lr = self.rival_lr + (v[1:] - v[0]) / c.temperature
+        keep = np.flatnonzero(lr >= -c.rival_nats)
+        keep = keep[np.argsort(-lr[keep])[: c.max_rivals]]
+        self.rivals, self.rival_lr = self.rivals[keep], lr[keep]
+        self._join(self.rivals, v[1:][keep] - v[0], t)
         return bool(len(self.rivals))
 
     def _join(self, poses: np.ndarray, dv: np.ndarray, t: float) -> None:
@@ -340,4 +357,4 @@ class WorldMCL:
         pf._set(np.r_[pf.particles[idx], fresh])
         pf.w_slow = pf.w_fast = 0.0
         self.converged, self.streak = False, 0
-        self.rivals = np.zeros((0, 3))
+        self.rivals, self.rival_lr = np.zeros((0, 3)), np.zeros(0)
