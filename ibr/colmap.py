@@ -14,14 +14,6 @@ import numpy as np
 from ibr.camera import Camera
 
 
-def image_file_name(name: str) -> str:
-    """The file name a view is exported under: its name when it already has an image
-    suffix, else `name.png`."""
-    from ibr.scene import IMAGE_SUFFIXES
-
-    return name if any(name.lower().endswith(s) for s in IMAGE_SUFFIXES) else f"{name}.png"
-
-
 def _camera_ids(cameras: list[Camera]) -> tuple[list[Camera], list[int]]:
     """Unique intrinsics (first camera of each) and the 1-based id of each camera's."""
     unique, ids = [], []
@@ -53,10 +45,9 @@ def observations(cameras: list[Camera], points: np.ndarray,
     return seen
 
 
-def to_reconstruction(cameras: list[Camera], names: list[str] | None = None, points: np.ndarray | None = None,
+def to_reconstruction(cameras: list[Camera], names: list[str], points: np.ndarray | None = None,
                       colors: np.ndarray | None = None, seen: list[np.ndarray] | None = None):
-    """A `pycolmap.Reconstruction` of `cameras` (image names `names`, default the cameras'
-    names through `image_file_name`), and of `points` (N, 3) world metres with `colors`
+    """A `pycolmap.Reconstruction` of `cameras` (image file names `names`), and of `points` (N, 3) world metres with `colors`
     (N, 3) uint8, each point observed (a keypoint at its projection) in the cameras whose
     `seen` (from `observations`) lists it. Image ids are 1..len(cameras) in order."""
     import pycolmap
@@ -65,7 +56,6 @@ def to_reconstruction(cameras: list[Camera], names: list[str] | None = None, poi
     unique, cam_ids = _camera_ids(cameras)
     for k, cam in enumerate(unique):
         rec.add_camera_with_trivial_rig(cam.to_pycolmap(k + 1))
-    names = names or [image_file_name(c.name) for c in cameras]
     points = np.zeros((0, 3)) if points is None else np.asarray(points, float).reshape(-1, 3)
     seen = seen or [np.zeros(0, int)] * len(cameras)
     tracks: list[list[tuple[int, int]]] = [[] for _ in range(len(points))]

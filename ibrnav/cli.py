@@ -14,7 +14,7 @@ from ibr.errors import InputError
 from ibrnav.log import setup_logging
 
 COMMANDS = ("scene", "render", "sfm", "eval_ibr", "localize", "eval_loc", "eval_track", "drive", "demo",
-            "explore", "vueplan", "scenic", "robot_check", "bench")
+            "explore", "vueplan", "scenic", "robot_check", "bench", "export")
 log = logging.getLogger("ibrnav")
 
 
