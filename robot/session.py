@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ibr.errors import InputError
-from robot.protocol import Photo, robot_camera
+from robot.protocol import Photo
 
 LOG, META, PHOTOS = "log.jsonl", "session.json", "photos"
 if TYPE_CHECKING:
