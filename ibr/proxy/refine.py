@@ -8,7 +8,7 @@ triangulation against the fixed poses; Schoenberger & Frahm 2016, section 4.5) g
 on those poses; a global bundle adjustment (intrinsics fixed) then moves poses and points to
 minimise the reprojection error. Bundle adjustment fixes its gauge on two cameras, so the
 refined cameras are mapped back onto the given ones by the similarity that best aligns their
-centres (Umeyama 1991): the world frame, its scale and its floor stay the given ones, and
+orientations and centres (`align_frames`): the world frame, its scale and its floor stay the given ones, and
 what moved is the disagreement between the photos and their poses.
 
 Units: metres, degrees in the report; reprojection errors in pixels.
@@ -70,28 +70,27 @@ class Refinement:
                 "unconstrained": self.unconstrained}
 
 
-def umeyama(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """Similarity (s, R, t) minimising sum |s R src_i + t - dst_i|^2 for (N, 3) points
-    (Umeyama 1991, eqs. 40-42)."""
-    mu_s, mu_d = src.mean(0), dst.mean(0)
-    a, b = src - mu_s, dst - mu_d
-    U, D, Vt = np.linalg.svd(b.T @ a / len(src))
-    S = np.diag([1, 1, np.sign(np.linalg.det(U) * np.linalg.det(Vt))])
-    R = U @ S @ Vt
-    var = (a ** 2).sum() / len(src)
-    s = float(np.trace(np.diag(D) @ S) / var) if var > 0 else 1.0
-    return s, R, mu_d - s * R @ mu_s
-
-
-def robust_similarity(src: np.ndarray, dst: np.ndarray, rounds: int = 3) -> tuple[float, np.ndarray, np.ndarray]:
-    """`umeyama` refitted `rounds` times on the points whose residual is within three times
-    the median residual, so a few cameras the adjustment moved far do not tilt the frame."""
+def align_frames(ba_from_cam: np.ndarray, world_from_cam: np.ndarray, rounds: int = 3
+                 ) -> tuple[float, np.ndarray, np.ndarray]:
+    """The similarity (s, R, t), world = s R ba + t, that best maps the bundle adjustment's
+    frame onto the given one, from N cameras' poses in both ((N, 4, 4) each). The rotation
+    is the chordal mean of the per-camera rotations (a rotation average: camera centres
+    alone leave it undetermined when the robot drove in a line), then scale and translation
+    fit the centres by least squares (Umeyama 1991, eqs. 41-42, with R given). Refitted
+    `rounds` times on the cameras within three times the median centre residual, so a few
+    cameras the adjustment moved far do not tilt the frame."""
+    src, dst = ba_from_cam[:, :3, 3], world_from_cam[:, :3, 3]
+    per_camera = world_from_cam[:, :3, :3] @ np.transpose(ba_from_cam[:, :3, :3], (0, 2, 1))
     keep = np.ones(len(src), bool)
     for _ in range(rounds):
-        s, R, t = umeyama(src[keep], dst[keep])
+        U, _, Vt = np.linalg.svd(per_camera[keep].sum(axis=0))
+        R = U @ np.diag([1, 1, np.sign(np.linalg.det(U @ Vt))]) @ Vt
+        a, b = src[keep] - src[keep].mean(0), dst[keep] - dst[keep].mean(0)
+        s = float(np.sum((a @ R.T) * b) / np.sum(a * a)) if np.sum(a * a) > 0 else 1.0
+        t = dst[keep].mean(0) - s * R @ src[keep].mean(0)
         res = np.linalg.norm(s * src @ R.T + t - dst, axis=1)
         new = res <= 3 * np.median(res) + 1e-12
-        if new.sum() < 3 or np.array_equal(new, keep):
+        if new.sum() < 2 or np.array_equal(new, keep):
             break
         keep = new
     return s, R, t
@@ -171,9 +170,8 @@ def _aligned_result(cameras: list[Camera], rec, index: dict[int, int], before: f
             T[:3, :] = image.cam_from_world().matrix()
             adjusted[i] = T
     ids = sorted(adjusted)
-    src = np.array([np.linalg.inv(adjusted[i])[:3, 3] for i in ids])
-    dst = np.array([cameras[i].center for i in ids])
-    s, R, t = robust_similarity(src, dst)
+    s, R, t = align_frames(np.array([np.linalg.inv(adjusted[i]) for i in ids]),
+                           np.array([cameras[i].world_from_cam for i in ids]))
     world_from_ba = np.eye(4)
     world_from_ba[:3, :3], world_from_ba[:3, 3] = R, t
     out, moved, turned = [], np.zeros(len(cameras)), np.zeros(len(cameras))
