@@ -6,7 +6,8 @@ PnP fixes): good to a few centimetres and degrees, not to a pixel. COLMAP's poin
 triangulator (SIFT features, exhaustive matching with geometric verification, then
 triangulation against the fixed poses; Schoenberger & Frahm 2016, section 4.5) gives tracks
 on those poses; a global bundle adjustment (intrinsics fixed) then moves poses and points to
-minimise the reprojection error. Bundle adjustment fixes its gauge on two cameras, so the
+minimise the reprojection error (a Cauchy loss; observations it cannot explain are dropped and
+the adjustment repeated, as COLMAP's global refinement does). Bundle adjustment fixes its gauge on two cameras, so the
 refined cameras are mapped back onto the given ones by the similarity that best aligns their
 orientations and centres (`align_frames`): the world frame, its scale and its floor stay the given ones, and
 what moved is the disagreement between the photos and their poses.
@@ -41,6 +42,17 @@ class RefineConfig:
     """A camera observing fewer triangulated points than this is left where it was (too
     weakly constrained to move); it is named in the report. A count, not a length."""
     max_iterations: int = 200
+    """Iterations of each bundle adjustment."""
+    rounds: int = 3
+    """Bundle adjustments, each followed by dropping the observations it cannot explain
+    (COLMAP's iterative global refinement)."""
+    max_error_px: float = 4.0
+    """Observations reprojecting further than this (pixels, COLMAP's default) are dropped
+    between rounds: a property of feature measurement, not of the scene."""
+    min_angle_deg: float = 1.5
+    """Points triangulated under a smaller angle are dropped between rounds (COLMAP's default)."""
+    loss_scale_px: float = 1.0
+    """Scale of the Cauchy loss on reprojection errors (pixels): a wrong match pulls little."""
     """Iterations of the global bundle adjustment."""
 
 
@@ -153,8 +165,13 @@ def refine_poses(cameras: list[Camera], images: list[np.ndarray], config: Refine
     options = pycolmap.BundleAdjustmentOptions(refine_focal_length=False, refine_principal_point=False,
                                                refine_extra_params=False)
     options.ceres.solver_options.max_num_iterations = config.max_iterations
+    options.ceres.loss_function_type = pycolmap.LossFunctionType.CAUCHY
+    options.ceres.loss_function_scale = config.loss_scale_px
     with colmap_errors_only():
-        pycolmap.bundle_adjustment(rec, options)
+        for _ in range(config.rounds):
+            pycolmap.bundle_adjustment(rec, options)
+            rec.update_point_3d_errors()  # the adjustment leaves the points' stored errors as they were
+            pycolmap.ObservationManager(rec).filter_all_points3D(config.max_error_px, config.min_angle_deg)
     after = rec.compute_mean_reprojection_error()
     return _aligned_result(cameras, rec, index, before, after, config)
 
