@@ -47,8 +47,8 @@ def observations(cameras: list[Camera], points: np.ndarray,
 
 def to_reconstruction(cameras: list[Camera], names: list[str], points: np.ndarray | None = None,
                       colors: np.ndarray | None = None, seen: list[np.ndarray] | None = None):
-    """A `pycolmap.Reconstruction` of `cameras` (image file names `names`), and of `points` (N, 3) world metres with `colors`
-    (N, 3) uint8, each point observed (a keypoint at its projection) in the cameras whose
+    """A `pycolmap.Reconstruction` of `cameras` (image file names `names`), and of `points`
+    (N, 3) world metres with `colors` (N, 3) uint8, each point observed (a keypoint at its projection) in the cameras whose
     `seen` (from `observations`) lists it. Image ids are 1..len(cameras) in order."""
     import pycolmap
 

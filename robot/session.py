@@ -15,7 +15,8 @@ leave: a torn last log line (dropped), temp files (deleted), photos with no reco
 step with a `commit` record carrying the state to resume from; `open(..., rollback=True)`
 drops records (and photos) after the last commit, so a resumed step is not duplicated.
 `load_session_scene` turns a folder into an `ibr.scene.Scene` (`ibr.capture` reads the
-layout; `ibr.scene.load_scene` takes the folder too); `write_model` adds the final model. Poses are SE(2) (x, y, theta), metres and radians.
+layout; `ibr.scene.load_scene` takes the folder too); `write_model` adds the final model.
+Poses are SE(2) (x, y, theta), metres and radians.
 """
 
 from __future__ import annotations

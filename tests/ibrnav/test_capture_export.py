@@ -144,12 +144,14 @@ def test_commands_run_on_a_capture_folder(session, tmp_path, ibrnav_command, cap
     assert ibrnav_command("scene", "show", folder, "--save", tmp_path / "s.rrd") == 0
 
 
-def test_localize_pnp_on_a_capture_folder(session, tmp_path, ibrnav_command, capsys):
+def test_localize_pnp_on_a_capture_folder(session, tmp_path, ibrnav_command, capsys, caplog):
     folder, cams = session
+    caplog.set_level("INFO")
     rc = ibrnav_command("localize", folder, "--query", folder / "photos" / "photo_00004.png", "--method", "pnp",
                         "--save", tmp_path / "l.rrd")
     out = json.loads(capsys.readouterr().out)
     assert rc == 0 and out["method"] == "pnp" and out["localized"]
+    assert "pnp map from 11 photos" in caplog.text  # the query, one of the session's photos, is left out
     spacing = np.linalg.norm(cams[3].center - cams[0].center)  # between neighbouring stops
     assert np.linalg.norm(np.array(out["center_m"]) - cams[4].center) < 0.05 * spacing  # left out of the map
 
