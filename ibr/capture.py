@@ -33,7 +33,6 @@ from ibr.camera import Camera, CameraError
 from ibr.errors import InputError
 
 META, LOG, PHOTOS, MAPS, MODEL = "session.json", "log.jsonl", "photos", "maps", "model"
-MODEL_MESH = "mesh.ply"
 
 
 class CaptureError(InputError):
@@ -72,12 +71,6 @@ class CaptureFolder:
         """The final model's COLMAP folder, None when the mission wrote none."""
         m = self.folder / MODEL
         return m if (m / "cameras.bin").is_file() or (m / "cameras.txt").is_file() else None
-
-    @property
-    def model_mesh(self) -> trimesh.Trimesh | None:
-        """The final model's mesh (`model/mesh.ply`), None without one."""
-        path = self.folder / MODEL / MODEL_MESH
-        return trimesh.load(path, process=False, force="mesh") if path.is_file() else None
 
     def photo_cameras(self) -> list[Camera]:
         """The camera of every photo at its logged pose (`photo_camera`), in log order."""

@@ -199,8 +199,7 @@ def load_capture(folder: str | Path, refine: bool = False) -> Scene:
         loaded = load_colmap(cap.model, cap.folder / PHOTOS)
         views = [replace(v, camera=v.camera.with_pose(v.camera.cam_from_world, Path(v.name).stem))
                  for v in loaded]
-        scene = replace(loaded, name=cap.folder.name, views=views, mesh=cap.model_mesh, root=cap.folder,
-                        meta={"poses": "model"})
+        scene = replace(loaded, name=cap.folder.name, views=views, root=cap.folder, meta={"poses": "model"})
     else:
         views = [View(cam, read_image(cap.folder / r["file"], cap.image_size), cap.folder / r["file"])
                  for cam, r in zip(cap.photo_cameras(), cap.photos)]

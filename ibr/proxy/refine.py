@@ -87,24 +87,27 @@ def align_frames(ba_from_cam: np.ndarray, world_from_cam: np.ndarray, rounds: in
     """The similarity (s, R, t), world = s R ba + t, that best maps the bundle adjustment's
     frame onto the given one, from N cameras' poses in both ((N, 4, 4) each). The rotation
     is the chordal mean of the per-camera rotations (a rotation average: camera centres
-    alone leave it undetermined when the robot drove in a line), then scale and translation
-    fit the centres by least squares (Umeyama 1991, eqs. 41-42, with R given). Refitted
-    `rounds` times on the cameras within three times the median centre residual, so a few
-    cameras the adjustment moved far do not tilt the frame."""
+    alone leave it undetermined when the robot drove in a line); the scale starts as the
+    median ratio of pairwise centre distances and the translation as the median offset, so
+    a few cameras the adjustment moved far do not pull the frame; then scale and translation
+    are refitted `rounds` times by least squares (Umeyama 1991, eqs. 41-42, with R given) on
+    the cameras within three times the median centre residual."""
     src, dst = ba_from_cam[:, :3, 3], world_from_cam[:, :3, 3]
     per_camera = world_from_cam[:, :3, :3] @ np.transpose(ba_from_cam[:, :3, :3], (0, 2, 1))
-    keep = np.ones(len(src), bool)
+    U, _, Vt = np.linalg.svd(per_camera.sum(axis=0))
+    R = U @ np.diag([1, 1, np.sign(np.linalg.det(U @ Vt))]) @ Vt
+    i, j = np.triu_indices(len(src), 1)
+    d_src = np.linalg.norm(src[i] - src[j], axis=1)
+    ok = d_src > 0
+    s = float(np.median(np.linalg.norm(dst[i] - dst[j], axis=1)[ok] / d_src[ok])) if ok.any() else 1.0
+    t = np.median(dst - s * src @ R.T, axis=0)
     for _ in range(rounds):
-        U, _, Vt = np.linalg.svd(per_camera[keep].sum(axis=0))
-        R = U @ np.diag([1, 1, np.sign(np.linalg.det(U @ Vt))]) @ Vt
-        a, b = src[keep] - src[keep].mean(0), dst[keep] - dst[keep].mean(0)
-        s = float(np.sum((a @ R.T) * b) / np.sum(a * a)) if np.sum(a * a) > 0 else 1.0
-        t = dst[keep].mean(0) - s * R @ src[keep].mean(0)
         res = np.linalg.norm(s * src @ R.T + t - dst, axis=1)
-        new = res <= 3 * np.median(res) + 1e-12
-        if new.sum() < 2 or np.array_equal(new, keep):
-            break
-        keep = new
+        keep = res <= 3 * np.median(res) + 1e-12
+        a, b = src[keep] - src[keep].mean(0), dst[keep] - dst[keep].mean(0)
+        if np.sum(a * a) > 0:
+            s = float(np.sum((a @ R.T) * b) / np.sum(a * a))
+        t = dst[keep].mean(0) - s * R @ src[keep].mean(0)
     return s, R, t
 
 
@@ -187,6 +190,10 @@ def _aligned_result(cameras: list[Camera], rec, index: dict[int, int], before: f
             T[:3, :] = image.cam_from_world().matrix()
             adjusted[i] = T
     ids = sorted(adjusted)
+    if len(ids) < 2:
+        raise RefineError(f"bundle adjustment kept {len(ids)} of {len(cameras)} cameras with at least "
+                          f"{config.min_observations} observations ({rec.num_points3D()} points left, mean "
+                          f"error {after:.3g} px); no pose was refined")
     s, R, t = align_frames(np.array([np.linalg.inv(adjusted[i]) for i in ids]),
                            np.array([cameras[i].world_from_cam for i in ids]))
     world_from_ba = np.eye(4)
