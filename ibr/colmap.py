@@ -1,13 +1,15 @@
 """Posed views to a `pycolmap.Reconstruction`: cameras, images and points with their tracks.
 
 The one place that builds a COLMAP model from ibrnav `Camera`s (`ibr.export` writes it,
-`ibr.proxy.refine` bundle-adjusts it). Intrinsics go through `Camera.to_pycolmap` (COLMAP's
+`ibr.proxy.refine` bundle-adjusts it), and the switch that quiets COLMAP's log. Intrinsics go through `Camera.to_pycolmap` (COLMAP's
 pixel (0, 0) is the top-left pixel's corner, ibrnav's its centre: + 0.5 px), poses as
 `cam_from_world`. Views with the same intrinsics and size share one COLMAP camera.
 Units: world metres; keypoints in COLMAP pixels.
 """
 
 from __future__ import annotations
+
+import contextlib
 
 import numpy as np
 
@@ -72,6 +74,15 @@ def to_reconstruction(cameras: list[Camera], names: list[str], points: np.ndarra
     return rec
 
 
-def cameras_of(rec) -> dict[str, Camera]:
-    """The registered images of a `pycolmap.Reconstruction` as `Camera`s, by image name."""
-    return {rec.image(i).name: Camera.from_pycolmap(rec.image(i)) for i in sorted(rec.reg_image_ids())}
+@contextlib.contextmanager
+def colmap_errors_only():
+    """Silence COLMAP's per-image INFO and WARNING log lines (hundreds per run, on stderr,
+    where ibrnav prints its own progress) for the duration; errors still show."""
+    import pycolmap
+
+    level = pycolmap.logging.minloglevel
+    pycolmap.logging.minloglevel = 2  # glog's ERROR
+    try:
+        yield
+    finally:
+        pycolmap.logging.minloglevel = level

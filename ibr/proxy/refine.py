@@ -116,7 +116,7 @@ def _triangulate(cameras: list[Camera], images: list[np.ndarray], work: Path):
     import pycolmap
     from PIL import Image
 
-    from ibr.proxy.sfm import colmap_errors_only
+    from ibr.colmap import colmap_errors_only
 
     img_dir = work / "images"
     img_dir.mkdir()
@@ -154,7 +154,7 @@ def refine_poses(cameras: list[Camera], images: list[np.ndarray], config: Refine
     the photos give fewer than `config.min_points` points."""
     import pycolmap
 
-    from ibr.proxy.sfm import colmap_errors_only
+    from ibr.colmap import colmap_errors_only
 
     work = Path(tempfile.mkdtemp(prefix="ibrnav_refine_"))
     try:

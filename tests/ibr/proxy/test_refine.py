@@ -33,11 +33,11 @@ def test_refine_moves_noisy_poses_towards_the_truth(office, gl_ctx):
 
     size = (320, 240)
     K, mount = intrinsics_from_fov(70, *size), forward_camera_mount(1.0)
-    poses = np.array([(x, -2.5, np.pi / 2 + dh) for x in np.linspace(-1.5, 1.5, 6) for dh in (-0.35, 0.0, 0.35)])
+    poses = np.array([(x, -2.5, np.pi / 2 + dh) for x in np.linspace(-1.5, 1.5, 5) for dh in (-0.35, 0.0, 0.35)])
     truth = [robot_camera(p, K, size, mount) for p in poses]
     images = [office.photograph(c) for c in truth]
     rng = np.random.default_rng(1)
-    spacing = 3.0 / 5  # between stops, metres
+    spacing = 3.0 / 4  # between stops, metres
     noisy_poses = poses + np.c_[rng.normal(0, 0.05 * spacing, (len(poses), 2)), rng.normal(0, np.radians(1), len(poses))]
     noisy = [robot_camera(p, K, size, mount) for p in noisy_poses]
     try:
