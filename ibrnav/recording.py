@@ -1,16 +1,93 @@
 """Rerun recording for every `ibrnav` command, the way rerun's examples do it:
 `add_rerun_args` (rerun's standard --save / --connect / --headless ... flags), `rerun_setup`
-and `rerun_teardown`. The entity tree is the same for every command (docs/ARCHITECTURE.md)."""
+and `rerun_teardown`. The entity tree is the same for every command (docs/ARCHITECTURE.md).
+
+Each recording carries a blueprint (the viewer's layout) chosen by the command's application
+id (`blueprint_for`): the 3-D world with cameras, particles and paths; the observed photo
+beside the rendered one; time series of error, coverage and particle count, where the
+command logs them. It also logs the command line and the ibrnav version as the text
+document `meta/command`, so a recording says what made it."""
 
 from __future__ import annotations
 
 import argparse
 import logging
+import shlex
+import sys
 
 import rerun as rr
+import rerun.blueprint as rrb
 
 SINK_FLAGS = ("save", "connect", "serve", "stdout", "headless", "serve_web", "serve_grpc")
+COMMAND_ENTITY = "meta/command"
+ERROR_PLOTS = ("plots/estimate_error_m", "plots/estimate_error_deg", "plots/dead_reckoning_error_m",
+               "plots/position_error_m", "plots/rotation_error_deg")
+COVERAGE_PLOTS = ("plots/coverage", "plots/render/**", "plots/vueplan/**")
+PARTICLE_PLOTS = ("plots/particles",)
 log = logging.getLogger(__name__)
+
+
+def _images(observed: str | None, rendered: str | None) -> list:
+    """The observed photo beside the rendered one (2-D views of image entities)."""
+    views = []
+    if observed:
+        views.append(rrb.Spatial2DView(origin=observed, name="observed"))
+    if rendered:
+        views.append(rrb.Spatial2DView(origin=rendered, name="rendered"))
+    return views
+
+
+def analysis_blueprint(observed: str | None = None, rendered: str | None = None,
+                       plots: bool = True) -> rrb.Blueprint:
+    """The analyst's layout: the 3-D world (cameras, particles, paths) on the left; on the
+    right the observed photo beside the rendered one, then error, coverage and particle-count
+    time series, with the command line in a tab beside them."""
+    right = []
+    images = _images(observed, rendered)
+    if images:
+        right.append(rrb.Horizontal(*images))
+    tabs = []
+    if plots:
+        tabs = [rrb.TimeSeriesView(origin="plots", contents=list(ERROR_PLOTS), name="error"),
+                rrb.TimeSeriesView(origin="plots", contents=list(COVERAGE_PLOTS), name="coverage"),
+                rrb.TimeSeriesView(origin="plots", contents=list(PARTICLE_PLOTS), name="particles"),
+                rrb.TimeSeriesView(origin="plots", name="all plots")]
+    right.append(rrb.Tabs(*tabs, rrb.TextDocumentView(origin=COMMAND_ENTITY, name="command")))
+    return rrb.Blueprint(
+        rrb.Horizontal(rrb.Spatial3DView(origin="world", name="world"), rrb.Vertical(*right),
+                       column_shares=[3, 2]),
+        collapse_panels=True)
+
+
+MISSION = dict(observed="world/robot/camera", rendered="world/tour/camera")
+TRACKING = dict(observed="localization/observed", rendered="localization/rendered_at_estimate")
+BLUEPRINTS = {
+    "ibrnav_demo": MISSION, "ibrnav_drive": MISSION, "ibrnav_explore": MISSION,
+    "ibrnav_eval_track": TRACKING, "ibrnav_localize": {**TRACKING, "plots": False},
+    "ibrnav_eval_loc": TRACKING, "ibrnav_render": dict(rendered="world/render"),
+    "ibrnav_scene_show": dict(plots=False),
+    "ibrnav_scenic": dict(observed="world/cameras/agent0", rendered="world/cameras/agent1"),
+}
+"""Application id (prefix) -> the `analysis_blueprint` arguments of its command; others get
+the 3-D world and every plot."""
+
+
+def blueprint_for(app_id: str) -> rrb.Blueprint:
+    """The blueprint of the command whose application id is (or starts with) app_id."""
+    key = max((k for k in BLUEPRINTS if app_id.startswith(k)), key=len, default=None)
+    return analysis_blueprint(**BLUEPRINTS.get(key, {}))
+
+
+def log_command_line(argv: list[str]) -> None:
+    """`meta/command`: the command line and the ibrnav version, as a static text document."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        v = version("ibrnav")
+    except PackageNotFoundError:
+        v = "unknown"
+    text = f"{shlex.join(argv)}\n\nibrnav {v}, rerun-sdk {rr.__version__}, Python {sys.version.split()[0]}\n"
+    rr.log(COMMAND_ENTITY, rr.TextDocument(text), static=True)
 
 
 def add_rerun_args(parser: argparse.ArgumentParser) -> None:
@@ -28,8 +105,9 @@ def rerun_setup(args: argparse.Namespace, app_id: str, default_save: str | None)
     spawn), record to `default_save` so a first run always leaves a file to open."""
     if default_save and not recording_requested(args):
         args.save = default_save
-    rr.script_setup(args, app_id)
+    rr.script_setup(args, app_id, default_blueprint=blueprint_for(app_id))
     rr.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    log_command_line(getattr(args, "command_line", None) or ["ibrnav", *sys.argv[1:]])
     if getattr(args, "save", None):
         log.info("recording to %s (open it with: rerun %s)", args.save, args.save)
 

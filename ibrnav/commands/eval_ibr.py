@@ -54,11 +54,11 @@ def register(subparsers) -> None:
     e.add_argument("scene", help=SCENE_HELP)
     e.add_argument("--json", required=True, help="write the results here")
     e.add_argument("--methods", nargs="+", choices=list(dict.fromkeys([m.replace("_", "-") for m in METHODS] + list(METHODS))),
-                   default=list(METHODS))
+                   default=list(METHODS), help="the renderers to evaluate")
     e.add_argument("--proxy", choices=PROXIES, default="photos",
-                   help="proxy from the other photos (default), plus plane-sweep points, or the scene's mesh")
+                   help="proxy from the other photos, plus plane-sweep points, or the scene's mesh")
     e.add_argument("--max-views", type=int, default=0, help="evaluate only the first N views (0 = all)")
-    e.add_argument("--k", type=int, default=4, help="sources blended per pixel by ULR (default 4)")
+    e.add_argument("--k", type=int, default=4, help="sources blended per pixel by ULR")
     e.add_argument("--scale", type=float, default=1.0,
-                   help="render and compare at this fraction of the photos' resolution (default 1)")
+                   help="render and compare at this fraction of the photos' resolution")
     e.set_defaults(func=run)

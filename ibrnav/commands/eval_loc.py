@@ -47,11 +47,12 @@ def run(args: argparse.Namespace) -> int:
 def register(subparsers) -> None:
     e = subparsers.add_parser("eval-loc", help="leave-one-out localisation of a scene's photos")
     e.add_argument("scene", help=SCENE_HELP)
-    e.add_argument("--method", choices=METHODS, default="hybrid")
+    e.add_argument("--method", choices=METHODS, default="hybrid",
+                   help="feature PnP, rendered-view particle filter, or PnP then the filter")
     e.add_argument("--trials", type=int, default=0, help="queries (cycling over the photos; 0: one per photo)")
     e.add_argument("--spread-m", type=float, default=1.0, help="prior position spread (m, per axis)")
     e.add_argument("--spread-deg", type=float, default=30.0, help="prior rotation spread (deg)")
-    e.add_argument("--seed", type=int, default=0)
+    e.add_argument("--seed", type=int, default=0, help="seed of the priors and the filter")
     e.add_argument("--json", help="write per-trial results and the summary here")
     add_model_arg(e)
     recording.add_rerun_args(e)

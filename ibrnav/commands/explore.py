@@ -63,7 +63,8 @@ def register(subparsers) -> None:
     e = subparsers.add_parser("explore", help="run a capture strategy in a synthetic scene with a photo "
                               "budget and report surface coverage")
     e.add_argument("scene", help="synthetic:NAME[?seed=N] (office or courtyard; the world seed defaults to --seed)")
-    e.add_argument("--strategy", choices=("adaptive", "random"), default="adaptive")
+    e.add_argument("--strategy", choices=("adaptive", "random"), default="adaptive",
+                   help="adaptive (next-best views on the map) or random exploration alone")
     add_mission_args(e, 136)
     e.add_argument("--json", default=None, help="write the report here")
     recording.add_rerun_args(e)

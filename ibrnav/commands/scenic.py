@@ -93,7 +93,8 @@ def register(subparsers) -> None:
     p.add_argument("--frames", type=int, default=30, help="planning iterations after the first pair")
     p.add_argument("--gamma", type=float, default=0.7, help="NBV cost of rays seeing nothing: "
                    "0 explores, 1 refines")
-    p.add_argument("--planner", choices=PLANNERS, default="scenic")
+    p.add_argument("--planner", choices=PLANNERS, default="scenic",
+                   help="the scenic planner (Mendez et al.) or a PRM / RRT* baseline")
     p.add_argument("--seed", type=int, default=0, help="world and planner seed")
     p.add_argument("--json", help="write per-frame metrics to this JSON file")
     p.add_argument("--width", type=int, default=320, help="image width (pixels)")
