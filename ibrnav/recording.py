@@ -62,7 +62,7 @@ def analysis_blueprint(observed: str | None = None, rendered: str | None = None,
 MISSION = dict(observed="world/robot/camera", rendered="world/tour/camera")
 TRACKING = dict(observed="localization/observed", rendered="localization/rendered_at_estimate")
 BLUEPRINTS = {
-    "ibrnav_demo": MISSION, "ibrnav_drive": MISSION, "ibrnav_explore": MISSION,
+    "ibrnav_demo": MISSION, "ibrnav_drive": dict(observed=MISSION["observed"]), "ibrnav_explore": MISSION,
     "ibrnav_eval_track": TRACKING, "ibrnav_localize": {**TRACKING, "plots": False},
     "ibrnav_eval_loc": TRACKING, "ibrnav_render": dict(rendered="world/render"),
     "ibrnav_scene_show": dict(plots=False),
@@ -118,3 +118,31 @@ def rerun_teardown(args: argparse.Namespace) -> None:
     ran in-process (a notebook, a test) rather than as its own process."""
     rr.script_teardown(args)
     rr.disconnect()
+
+
+def recording_layout(rrd: str) -> dict:
+    """What a `.rrd` file says about itself, read with rerun's chunk reader: its application
+    id, its blueprint's views as (kind, name, origin) (e.g. ("3D", "world", "/world")), and
+    the `meta/command` text (empty when it has none)."""
+    reader = rr.chunk.RrdReader(rrd)
+    recordings = reader.recordings()
+    if not recordings:
+        raise ValueError(f"{rrd}: no recording in the file")
+    views = {}
+    for store in reader.blueprints():
+        for chunk in reader.stream(store=store):
+            row = chunk.to_record_batch().to_pylist()
+            if chunk.entity_path.startswith("/view/") and row and "ViewBlueprint:class_identifier" in row[-1]:
+                r = row[-1]
+                views[chunk.entity_path] = tuple(_scalar(r[f"ViewBlueprint:{k}"])
+                                                 for k in ("class_identifier", "display_name", "space_origin"))
+    command = ""
+    for chunk in reader.stream(store=recordings[0]):
+        if chunk.entity_path == f"/{COMMAND_ENTITY}":
+            command = _scalar(chunk.to_record_batch().to_pylist()[-1]["TextDocument:text"])
+    return {"application_id": recordings[0].application_id, "views": sorted(views.values()), "command": command}
+
+
+def _scalar(cell):
+    """The one value of a rerun component cell (a list of one)."""
+    return cell[0] if isinstance(cell, list) else cell
