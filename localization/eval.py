@@ -61,7 +61,8 @@ def evaluate_localization(scene: Scene, method: str, trials: int, spread_m: floa
         pos, rot = pose_errors(res.cam_from_world, truth) if res.cam_from_world is not None else (np.inf, np.inf)
         rows.append({"trial": i, "view": held.name, "position_m": pos, "rotation_deg": rot,
                      "seconds": res.seconds, "n_inliers": res.n_inliers,
-                     "success": bool(pos < config.success_m and rot < config.success_deg)})
+                     "success": bool(pos < config.success_m and rot < config.success_deg),
+                     "reason": res.verdict.reason or None})
         log.info(f"[{i + 1}/{trials}] {held.name}: {pos:.4f} m, {rot:.3f} deg, {res.seconds:.2f} s")
         if on_trial:
             on_trial(i, held, res, rows[-1])

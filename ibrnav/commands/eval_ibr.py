@@ -4,23 +4,13 @@ image-based renderers (`ibr.render.eval`); the per-method means are printed."""
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
-import numpy as np
 
 from ibr.render.renderers import METHODS, PROXIES
+from ibrnav import jsonout
 from ibrnav.commands.render import RenderArgsError
 from ibrnav.commands.scene import SCENE_HELP
-
-
-def json_safe(x):
-    """The result with NaN/inf floats (a method that covered nothing) written as null."""
-    if isinstance(x, dict):
-        return {k: json_safe(v) for k, v in x.items()}
-    if isinstance(x, list):
-        return [json_safe(v) for v in x]
-    return None if isinstance(x, float) and not np.isfinite(x) else x
 
 
 def run(args: argparse.Namespace) -> int:
@@ -41,8 +31,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = EvalConfig(methods=tuple(m.replace("-", "_") for m in args.methods), proxy=args.proxy,
                      max_views=args.max_views, k=args.k, scale=args.scale)
     result = evaluate_scene(scene, cfg)
-    text = json.dumps(json_safe(result), indent=2, allow_nan=False)
-    Path(args.json).write_text(text)
+    jsonout.write(args.json, result)
     for m, r in result["methods"].items():
         print(f"{m:17s} PSNR {r['psnr_mean']:6.2f} dB  SSIM {r['ssim_mean']:.3f}  coverage {r['coverage_mean']:.3f}"
               f"  PSNR on common pixels {r['psnr_common_mean']:6.2f} dB, exposure-matched {r['psnr_exposure_mean']:6.2f} dB")

@@ -4,10 +4,8 @@ the summary is printed as JSON, per-trial rows go to --json."""
 from __future__ import annotations
 
 import argparse
-import json
-from pathlib import Path
 
-from ibrnav import recording
+from ibrnav import jsonout, recording
 from ibrnav.commands.localize import add_model_arg
 from ibrnav.commands.scene import SCENE_HELP
 from localization.localize import METHODS
@@ -39,8 +37,8 @@ def run(args: argparse.Namespace) -> int:
                                 args.seed, LocConfig(model=args.model), on_trial=on_trial)
     recording.rerun_teardown(args)
     if args.json:
-        Path(args.json).write_text(json.dumps(out, indent=2) + "\n")
-    print(json.dumps({k: v for k, v in out.items() if k != "per_trial"}, indent=2))
+        jsonout.write(args.json, out)
+    print(jsonout.dumps({k: v for k, v in out.items() if k != "per_trial"}))
     return 0
 
 

@@ -4,14 +4,12 @@ with global localisation and a kidnapping, over seeded trials (JSON out, rerun f
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import time
-from pathlib import Path
 
 import numpy as np
 
-from ibrnav import recording
+from ibrnav import jsonout, recording
 from robot.eval_track import TrackConfig
 
 log = logging.getLogger(__name__)
@@ -63,8 +61,8 @@ def run(args: argparse.Namespace) -> int:
     summary = _summary(trials, config)
     out = {"scene": args.scene, "config": {k: v for k, v in vars(config).items()}, **summary, "trials": trials}
     if args.json:
-        Path(args.json).write_text(json.dumps(out, indent=2) + "\n")
-    print(json.dumps(summary, indent=2))
+        jsonout.write(args.json, out)
+    print(jsonout.dumps(summary))
     return 0
 
 

@@ -6,13 +6,11 @@ strategies at equal photo budgets."""
 from __future__ import annotations
 
 import argparse
-import json
 import time
-from pathlib import Path
 
 import numpy as np
 
-from ibrnav import recording
+from ibrnav import jsonout, recording
 from ibrnav.args import add_mission_args, mission_config, random_config
 
 START_HEADING = 0.0
@@ -53,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
               "localisation_error_m": obs.error_summary(),
               "seconds": time.perf_counter() - t0}
     if args.json:
-        Path(args.json).write_text(json.dumps(report, indent=1))
+        jsonout.write(args.json, report, indent=1)
     print(f"{args.strategy}: coverage {report['coverage']:.3f} with {report['photos']} photos, "
           f"path {report['path_length_m']:.1f} m ({report['seconds']:.0f} s)")
     return 0

@@ -4,14 +4,13 @@ the 6-DoF rendered-view particle filter, or the hybrid; the pose is printed as J
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 from pathlib import Path
 
 import numpy as np
 
 from ibr.errors import InputError
-from ibrnav import recording
+from ibrnav import jsonout, recording
 from ibrnav.commands.scene import SCENE_HELP
 from localization.localize import METHODS, MODELS
 
@@ -78,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
         viz.log_observed_vs_rendered(image, loc.likelihood.model.render(est).color)
     recording.rerun_teardown(args)
     rv = Rotation.from_matrix(est.world_from_cam[:3, :3]).as_rotvec()
-    print(json.dumps({"query": args.query, "method": args.method, "seconds": round(res.seconds, 3),
+    print(jsonout.dumps({"query": args.query, "method": args.method, "seconds": round(res.seconds, 3),
                       "center_m": est.center.round(4).tolist(), "rotvec_deg": np.degrees(rv).round(3).tolist(),
                       "cam_from_world": est.cam_from_world.round(6).tolist(), "n_inliers": res.n_inliers}, indent=2))
     return 0

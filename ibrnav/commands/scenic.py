@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import logging
 import time
 
@@ -14,7 +13,7 @@ import numpy as np
 
 from explore.scenic.session import PLANNERS
 from ibr.errors import InputError
-from ibrnav import recording
+from ibrnav import jsonout, recording
 
 log = logging.getLogger(__name__)
 
@@ -79,9 +78,8 @@ def run(args: argparse.Namespace) -> int:
     per_frame = [{"frame": r.frame, **r.metrics} for r in reports]
     result = {"per_frame": per_frame, "final": dict(per_frame[-1])}
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(result, f, indent=1)
-    print(json.dumps(result["final"]))
+        jsonout.write(args.json, result, indent=1)
+    print(jsonout.dumps(result["final"], indent=None))
     return 0
 
 

@@ -10,15 +10,13 @@ SITE: `synthetic:NAME[?seed=N]` (the world's mesh and free space), or a mesh fil
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import time
-from pathlib import Path
 
 import numpy as np
 
 from ibr.errors import InputError
-from ibrnav import recording
+from ibrnav import jsonout, recording
 
 log = logging.getLogger(__name__)
 
@@ -84,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
                      run_phase2(args, mesh, plan, renderer, height, p1.views[tour.order], rng, vv))
     out["tour_length_m"] = tour.length_m
     if args.json:
-        Path(args.json).write_text(json.dumps(out, indent=2) + "\n")
+        jsonout.write(args.json, out)
     recording.rerun_teardown(args)
     return 0
 
