@@ -6,6 +6,7 @@ strategies at equal photo budgets."""
 from __future__ import annotations
 
 import argparse
+import logging
 import time
 
 import numpy as np
@@ -17,6 +18,7 @@ START_HEADING = 0.0
 
 
 def run(args: argparse.Namespace) -> int:
+    from ibr.progress import counter
     from ibr.scene import parse_scene_spec
     from ibr.synthetic import loop_route, make_world
     from robot.mission.coverage import CoverageConfig, CoverageTracker
@@ -34,12 +36,14 @@ def run(args: argparse.Namespace) -> int:
     if log:
         recording.rerun_setup(args, f"ibrnav_explore_{args.strategy}", None)
     obs = RecordingObserver(robot, None, log, CoverageTracker(world.mesh, CoverageConfig()))
+    obs.progress = counter(args.photos, "photos", logging.getLogger(__name__))
     rng = np.random.default_rng(args.seed)
     if args.strategy == "random":
         result = run_random_only(robot, start, args.photos, rng, obs, random_config(args))
     else:
         result = run_mission(robot, start, min(args.random_photos, args.photos), args.photos,
                              mission_config(args), rng, obs, random_config(args))
+    obs.progress.close()
     if log:
         recording.rerun_teardown(args)
     report = {"scene": args.scene, "strategy": args.strategy, "seed": args.seed,

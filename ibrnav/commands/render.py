@@ -65,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
     from PIL import Image
 
     from ibr.render.renderers import make_renderers, proxy_mesh
+    from ibr.progress import progress
     from ibr.render.viz import log_render
     from ibr.scene import load_scene
 
@@ -84,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
     if len(cams) > 1:
         out.mkdir(parents=True, exist_ok=True)
         recording.rerun_setup(args, "ibrnav_render", str(out / "render.rrd"))
-    for i, cam in enumerate(cams):
+    for i, cam in enumerate(progress(cams, desc="frames", logger=log)):
         cam = cam.scaled(args.scale) if args.scale != 1 else cam
         image, covered = renderer.render(cam)
         target = out / f"frame_{i:04d}.png" if len(cams) > 1 else out

@@ -91,6 +91,7 @@ def run_phase2(args, mesh, plan, renderer, height, views_xy, rng, vv) -> list[di
     from explore.vueplan.phase2 import Phase2Config, SurfaceCoverage, ground_candidates, plan_phase2
     from explore.vueplan.scan_simulator import ScanConfig, simulate_scan
     from explore.vueplan.voxel_grid import VoxelGrid, insert_scan
+    from ibr.progress import counter, progress
 
     scfg = ScanConfig(resolution_deg=args.scan_resolution, min_range_m=args.min_range,
                       max_range_m=args.max_range, range_noise_m=args.range_noise)
@@ -111,7 +112,7 @@ def run_phase2(args, mesh, plan, renderer, height, views_xy, rng, vv) -> list[di
         return scan
 
     log.info(f"voxel grid {grid.shape} ({np.prod(grid.shape):,} voxels of {args.voxel} m)")
-    for xy in views_xy:
+    for xy in progress(views_xy, desc="Phase I scans", logger=log):
         scan = acquire(np.r_[xy, height])
         insert_scan(grid, scan.origin, scan.points, scan.no_return, scan.max_range_m)
     p2cfg = Phase2Config(min_range_m=args.min_range, max_range_m=args.max_range,
@@ -124,6 +125,7 @@ def run_phase2(args, mesh, plan, renderer, height, views_xy, rng, vv) -> list[di
     def on_row(row, counts):
         k = len(rows_seen)
         rows_seen.append(row)
+        bar.update()
         vv.log_voxels(step, grid)
         vv.log_nbv_candidates(step, candidates, counts, row.nbv)
         vv.log_phase2_row(step, row)
@@ -131,7 +133,9 @@ def run_phase2(args, mesh, plan, renderer, height, views_xy, rng, vv) -> list[di
                   f"best view sees {row.visible_to_nbv} ({row.seconds:.1f} s)")
 
     rows_seen: list = []
+    bar = counter(args.max_nbv + 1, "NBV iterations", log)
     rows = plan_phase2(grid, candidates, acquire, p2cfg, lambda: coverage.fraction, on_row)
+    bar.close()
     print_table(rows)
     return [r.as_json() for r in rows]
 
