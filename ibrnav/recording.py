@@ -146,3 +146,19 @@ def recording_layout(rrd: str) -> dict:
 def _scalar(cell):
     """The one value of a rerun component cell (a list of one)."""
     return cell[0] if isinstance(cell, list) else cell
+
+
+def recording_scalars(rrd: str, index: str = "step"):
+    """The scalar time series under `plots/` of a `.rrd`, read with rerun's dataframe API, as
+    a pandas DataFrame: one row per value of the timeline `index`, one column per plot
+    (named by its entity path, e.g. "plots/coverage"), NaN where a plot has no value at that
+    row; the other timelines (e.g. `sensor_time`) as columns too. Needs `rerun-sdk[catalog]`."""
+    import numpy as np
+
+    store = rr.chunk.RrdReader(str(rrd)).stream().collect()
+    df = store.reader(index=index, contents="/plots/**").to_pandas()
+    out = df[[c for c in df.columns if ":" not in c and c != "log_time"]].copy()
+    for c in df.columns:
+        if c.endswith(":Scalars:scalars"):
+            out[c.split(":")[0].lstrip("/")] = [float(v[0]) if v is not None and len(v) else np.nan for v in df[c]]
+    return out.set_index(index)
