@@ -92,6 +92,7 @@ class RecordingObserver(MissionObserver):
     def particles(self, particles, weights) -> None:
         if self.log:
             loc_viz.log_particles(particles, weights)
+            loc_viz.log_particle_count(len(particles))
             if self.sim:
                 loc_viz.log_estimate_error(self._filter_mean(particles, weights), self.robot.true_pose)
 
