@@ -11,6 +11,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ibr.progress import progress
+from ibr.proxy.proxy_geometry import build_proxy
 from ibr.proxy.triangulation import sift_features
 from ibr.scene import Scene
 from localization.feature_localizer import pose_errors
@@ -25,13 +26,42 @@ def draw_prior(truth: np.ndarray, spread_m: float, spread_deg: float, rng: np.ra
     return cam_from_world_of(sample_around(truth, 1, spread_m, np.radians(spread_deg), rng))[0]
 
 
+def median_point_depth(scene: Scene) -> float:
+    """The scene's depth (metres): the median camera-z of its triangulated points over the
+    photos that see them (points in front of the camera and inside its image)."""
+    points = build_proxy(scene).points
+    depths = []
+    for cam in scene.cameras:
+        uv, z = cam.project(points)
+        inside = (z > 0) & np.all((uv >= 0) & (uv < [cam.width, cam.height]), axis=1)
+        depths.append(z[inside])
+    d = np.concatenate(depths)
+    if not len(d):
+        raise LocalizeError(f"scene {scene.name!r}: no triangulated point is seen by its photos")
+    return float(np.median(d))
+
+
+def prior_spread_m(spread: str, scene: Scene) -> float:
+    """--spread-m as metres: "0.5" is metres, "10%" a fraction of `median_point_depth`."""
+    text = str(spread).strip()
+    try:
+        if text.endswith("%"):
+            return float(text[:-1]) / 100.0 * median_point_depth(scene)
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not np.isfinite(value) or value <= 0:
+        raise LocalizeError(f"--spread-m {spread!r}: expected metres (e.g. 1.0) or a share of the scene depth (e.g. 10%)")
+    return value
+
+
 def evaluate_localization(scene: Scene, method: str, trials: int, spread_m: float, spread_deg: float,
                           seed: int, config: LocConfig = LocConfig(),
                           on_trial: Callable | None = None) -> dict:
     """Leave-one-out: trial i queries view i mod len(scene) against a map of the others,
     from a prior drawn around its true pose (seed + i). Returns the JSON-ready summary
-    (median_position_m, median_rotation_deg, success_rate, seconds_per_query) and per-trial rows.
-    on_trial(i, held_view, LocResult, row) is called after each trial (for logging)."""
+    (`summarise`) and per-trial rows (errors null when no pose was returned, the verdict
+    and its reason). on_trial(i, held_view, LocResult, row) is called after each trial."""
     if method not in METHODS:
         raise LocalizeError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
     if len(scene) < 3:
@@ -58,24 +88,47 @@ def evaluate_localization(scene: Scene, method: str, trials: int, spread_m: floa
         truth = held.camera.cam_from_world
         prior = draw_prior(truth, spread_m, spread_deg, rng)
         res = localizers[k].localize(held.image, held.camera, prior, spread_m, spread_deg, rng)
-        pos, rot = pose_errors(res.cam_from_world, truth) if res.cam_from_world is not None else (np.inf, np.inf)
-        rows.append({"trial": i, "view": held.name, "position_m": pos, "rotation_deg": rot,
-                     "seconds": res.seconds, "n_inliers": res.n_inliers,
-                     "success": bool(pos < config.success_m and rot < config.success_deg),
-                     "reason": res.verdict.reason or None})
-        log.info(f"[{i + 1}/{trials}] {held.name}: {pos:.4f} m, {rot:.3f} deg, {res.seconds:.2f} s")
+        rows.append(trial_row(i, held.name, res, truth, config))
+        r = rows[-1]
+        log.info(f"[{i + 1}/{trials}] {held.name}: {r['position_m']} m, {r['rotation_deg']} deg, "
+                 f"{'localised' if r['localized'] else 'not localised: ' + r['reason']}, "
+                 f"confidence {r['confidence']:.2f}, {res.seconds:.2f} s")
         if on_trial:
-            on_trial(i, held, res, rows[-1])
+            on_trial(i, held, res, r)
     for loc in localizers.values():
         loc.release()
     return {"scene": scene.name, "method": method, "trials": trials, "spread_m": spread_m,
             "spread_deg": spread_deg, "seed": seed, **summarise(rows), "per_trial": rows}
 
 
+def trial_row(i: int, name: str, res, truth: np.ndarray, config: LocConfig) -> dict:
+    """One trial's JSON row: errors (null without a pose), success, verdict, timing."""
+    pos = rot = None
+    if res.cam_from_world is not None:
+        pos, rot = (float(x) for x in pose_errors(res.cam_from_world, truth))
+    success = pos is not None and pos < config.success_m and rot < config.success_deg
+    return {"trial": i, "view": name, "position_m": pos, "rotation_deg": rot, "success": bool(success),
+            **res.verdict.as_dict(), "source": res.source, "n_inliers": res.n_inliers, "seconds": res.seconds}
+
+
 def summarise(rows: list[dict]) -> dict:
-    """Medians of the errors (failed PnP counts as infinite), success rate, mean seconds."""
-    pos = np.array([r["position_m"] for r in rows])
-    rot = np.array([r["rotation_deg"] for r in rows])
-    return {"median_position_m": float(np.median(pos)), "median_rotation_deg": float(np.median(rot)),
+    """Medians of the errors (null when over half the queries returned no pose), success
+    rate, flagged rate (queries flagged localised), flag precision (successes among the
+    flagged; null when none is flagged), mean seconds, and success rate per confidence bin."""
+    pos = np.array([np.inf if r["position_m"] is None else r["position_m"] for r in rows])
+    rot = np.array([np.inf if r["rotation_deg"] is None else r["rotation_deg"] for r in rows])
+    flagged = [r for r in rows if r["localized"]]
+
+    def median(x):
+        m = float(np.median(x))
+        return m if np.isfinite(m) else None
+    bins = []
+    for lo, hi in ((0.0, 0.5), (0.5, 0.9), (0.9, 1.01)):
+        inside = [r for r in rows if lo <= r["confidence"] < hi]
+        bins.append({"confidence": [lo, min(hi, 1.0)], "queries": len(inside),
+                     "success_rate": float(np.mean([r["success"] for r in inside])) if inside else None})
+    return {"median_position_m": median(pos), "median_rotation_deg": median(rot),
             "success_rate": float(np.mean([r["success"] for r in rows])),
-            "seconds_per_query": float(np.mean([r["seconds"] for r in rows]))}
+            "flagged_rate": len(flagged) / len(rows),
+            "flag_precision": float(np.mean([r["success"] for r in flagged])) if flagged else None,
+            "seconds_per_query": float(np.mean([r["seconds"] for r in rows])), "calibration": bins}
