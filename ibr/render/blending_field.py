@@ -156,7 +156,7 @@ def triangle_weights(triangles: np.ndarray, weights: np.ndarray, n_slots: int) -
     Wt = weights[triangles]                                 # (T, 3, N)
     strength = Wt.max(axis=1)                               # (T, N)
     m = min(n_slots, weights.shape[1])
-    order = np.argsort(-strength, axis=1)[:, :m]            # (T, m)
+    order = np.argsort(-strength, axis=1, kind="stable")[:, :m]            # (T, m)
     w = np.take_along_axis(Wt, order[:, None, :], axis=2)   # (T, 3, n_slots)
     active = np.take_along_axis(strength, order, axis=1) > 0
     out = np.zeros((len(triangles), n_slots, 4), np.float32)

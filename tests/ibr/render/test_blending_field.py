@@ -74,8 +74,9 @@ def test_triangle_weights_pack_strongest_sources_first():
     weights = np.array([[0.7, 0.3, 0.0, 0.0], [0.0, 0.5, 0.5, 0.0], [0.0, 0.0, 0.0, 1.0], [0, 0, 0, 0]])
     out = triangle_weights(np.array([[0, 1, 2], [0, 1, 3]]), weights, 6)
     assert out.shape == (2, 6, 4)
-    np.testing.assert_array_equal(out[0, :, 3], [0, 3, 1, 2, -1, -1])   # by max weight: .7, 1, .5, .5
-    np.testing.assert_allclose(out[0, 0, :3], [0.7, 0.0, 0.0])
+    np.testing.assert_array_equal(out[0, :, 3], [3, 0, 1, 2, -1, -1])   # by max weight: 1, .7, .5, .5
+    np.testing.assert_allclose(out[0, 0, :3], [0.0, 0.0, 1.0])
+    np.testing.assert_allclose(out[0, 1, :3], [0.7, 0.0, 0.0])
     np.testing.assert_allclose(out[0, 2, :3], [0.3, 0.5, 0.0])
     np.testing.assert_array_equal(out[1, :, 3], [0, 1, 2, -1, -1, -1])  # vertex 3 has no weights
 
