@@ -1,5 +1,5 @@
-// VuePlan Phase II visibility counts (Blaer & Allen 2009, Sec. 3.2.2-3.2.4) on the GPU:
-// one invocation per (boundary-unseen voxel u, potential view p) pair. The pair counts for p
+// VuePlan Phase II visibility counts (Blaer & Allen 2009, Sec. 3.2.2-3.2.4) on the GPU,
+// every (boundary-unseen voxel u, potential view p) pair in one pass. The pair counts for p
 // when the segment from u's centre to p is within the scanner's range, meets the normal of
 // one of u's exposed faces within the grazing angle, and crosses no blocked (seen-occupied
 // or unseen) voxel besides u. The segment is walked voxel by voxel (Amanatides & Woo), and
@@ -11,7 +11,7 @@
 // Units: voxel coordinates (world minus the grid origin, over the voxel edge).
 
 #if defined COMPUTE_SHADER
-layout(local_size_x = 64) in;
+layout(local_size_x = 64) in;  // views
 
 layout(std430, binding = 0) readonly buffer Distance { float dist[]; };  // C order (nx, ny, nz); 0 = blocked
 layout(std430, binding = 1) readonly buffer Voxels { ivec4 voxels[]; };   // (i, j, k, exposed-face bits)
@@ -21,7 +21,7 @@ layout(std430, binding = 3) buffer Counts { uint counts[]; };   // per view, the
 uniform ivec3 u_shape;
 uniform int u_n_voxels;
 uniform int u_n_views;
-uniform int u_view_offset;      // first view of this dispatch
+uniform int u_voxel_offset;     // first voxel block of this dispatch
 uniform float u_voxel_m;        // voxel edge (metres)
 uniform float u_min_range_m;
 uniform float u_max_range_m;
@@ -30,9 +30,6 @@ uniform float u_cos_max;        // cosine of the largest grazing angle
 const vec3 FACE_NORMALS[6] = vec3[6](vec3(-1, 0, 0), vec3(1, 0, 0), vec3(0, -1, 0), vec3(0, 1, 0),
                                      vec3(0, 0, -1), vec3(0, 0, 1));
 const float BIG = 1e30;
-#ifndef TIE_RULE
-#define TIE_RULE 1
-#endif
 const float TIE_EPS = 1e-5;  // segment parameter: crossings closer than this are one (a tie)
 
 float distance_at(ivec3 c) { return dist[(c.x * u_shape.y + c.y) * u_shape.z + c.z]; }
@@ -55,7 +52,7 @@ bool segment_clear(vec3 a, vec3 b) {
         bvec3 tie = lessThanEqual(t_max, vec3(t + TIE_EPS));
         ivec3 prev = idx;
         int n_tie = int(tie.x) + int(tie.y) + int(tie.z);
-        if (bool(TIE_RULE) && n_tie > 1) {
+        if (n_tie > 1) {
             for (int k = 0; k < 3; ++k) {
                 if (!tie[k]) continue;
                 ivec3 side = prev;
@@ -80,21 +77,28 @@ bool segment_clear(vec3 a, vec3 b) {
     return true;
 }
 
+// One invocation per (view, block of VOXELS_PER_INVOCATION boundary voxels): the lanes of
+// a SIMD group are neighbouring views looking at the same voxel, whose walks are alike.
 void main() {
-    int u = int(gl_GlobalInvocationID.x);
-    int v = u_view_offset + int(gl_GlobalInvocationID.y);
-    if (u >= u_n_voxels || v >= u_n_views) return;
-    ivec4 vox = voxels[u];
-    vec3 a = vec3(vox.xyz) + 0.5;
+    int v = int(gl_GlobalInvocationID.x);
+    int u0 = (u_voxel_offset + int(gl_GlobalInvocationID.y)) * VOXELS_PER_INVOCATION;
+    if (v >= u_n_views || u0 >= u_n_voxels) return;
     vec3 b = views[v].xyz;
-    vec3 d = b - a;
-    float r = length(d) * u_voxel_m;
-    if (r < u_min_range_m || r > u_max_range_m) return;
-    float best = -BIG;
-    for (int f = 0; f < 6; ++f)
-        if ((vox.w & (1 << f)) != 0) best = max(best, dot(FACE_NORMALS[f], d));
-    if (best < u_cos_max * length(d)) return;
-    atomicAdd(counts[u_n_views], 1u);
-    if (segment_clear(a, b)) atomicAdd(counts[v], 1u);
+    uint seen = 0u, walked = 0u;
+    for (int u = u0; u < min(u0 + VOXELS_PER_INVOCATION, u_n_voxels); ++u) {
+        ivec4 vox = voxels[u];
+        vec3 a = vec3(vox.xyz) + 0.5;
+        vec3 d = b - a;
+        float r = length(d) * u_voxel_m;
+        if (r < u_min_range_m || r > u_max_range_m) continue;
+        float best = -BIG;
+        for (int f = 0; f < 6; ++f)
+            if ((vox.w & (1 << f)) != 0) best = max(best, dot(FACE_NORMALS[f], d));
+        if (best < u_cos_max * length(d)) continue;
+        walked += 1u;
+        if (segment_clear(a, b)) seen += 1u;
+    }
+    if (seen > 0u) atomicAdd(counts[v], seen);
+    atomicAdd(counts[u_n_views], walked);
 }
 #endif

@@ -22,7 +22,9 @@ centre to p (Sec. 3.2.2-3.2.4)
   * crosses no seen-occupied and no unseen voxel (besides u itself).
 The test runs for all (u, p) pairs at once, never a Python loop per ray, with one of three
 ray backends: "gl" (the default: range, grazing and a voxel walk with a distance-field skip
-for every pair in one compute pass, `voxel_visibility.GLVoxelVisibility`), "embree" (the
+for every pair in one compute pass, `voxel_visibility.GLVoxelVisibility`; on large grids a
+first pass ranks the views on a subsample of the boundary voxels and a second counts the
+best few exactly, see `Phase2Config.gl_exact_pairs`), "embree" (the
 exact reference: after the range / grazing pruning in numpy, one Embree occlusion query per
 ray against the mesh of blocked/open voxel faces, `voxel_occlusion.VoxelOccluder`) or
 "walk" (the numpy voxel walk vectorised over the rays, `voxel_grid.segments_clear`). They
@@ -78,7 +80,20 @@ class Phase2Config:
     reference: compiled ray queries against the blocked voxel faces) or "walk" (numpy
     Amanatides-Woo walk with a distance-field skip)."""
 
+    gl_exact_pairs: int = 4_000_000
+    """gl backend: up to this many (voxel, view) pairs every view is counted exactly. Above
+    it, the views are first ranked on every gl_estimate_stride-th boundary voxel (the count
+    scaled up), and the gl_refine_views best of them counted exactly on all voxels; the NBV
+    is the best of those (the other views keep their estimates)."""
+    gl_estimate_stride: int = 8
+    """gl backend: boundary-voxel subsample of the ranking pass (a stride in `boundary_unseen`
+    order, which runs through the grid in x, y, z order, so the subsample is spread evenly)."""
+    gl_refine_views: int = 32
+    """gl backend: views re-counted exactly after the ranking pass."""
+
     def __post_init__(self):
+        if min(self.gl_exact_pairs, self.gl_estimate_stride, self.gl_refine_views) < 1:
+            raise ValueError("gl_exact_pairs, gl_estimate_stride and gl_refine_views must be >= 1")
         if self.ray_backend not in RAY_BACKENDS:
             raise ValueError(f"ray_backend must be one of {RAY_BACKENDS}, got {self.ray_backend!r}")
         if not 0 <= self.stop_fraction < 1:
@@ -148,12 +163,7 @@ def count_visible(grid: VoxelGrid, views: np.ndarray, cfg: Phase2Config,
         return counts
     blocked = grid.state != EMPTY  # occupied and unseen both block
     if cfg.ray_backend == "gl":
-        counts[ok_view], rays = _gl_counter().count(
-            blocker_distance(blocked), idx, faces, grid.to_voxel(views[ok_view]), grid.voxel_m,
-            cfg.min_range_m, cfg.max_range_m, np.cos(cfg.max_grazing_rad))
-        if stats is not None:
-            stats["pairs"] = stats.get("pairs", 0) + len(idx) * len(ok_view)
-            stats["rays"] = stats.get("rays", 0) + rays
+        counts[ok_view] = _count_gl(grid, blocked, idx, faces, views[ok_view], cfg, stats)
         return counts
     if cfg.ray_backend == "embree":
         occluder = VoxelOccluder(blocked)
@@ -179,6 +189,35 @@ def count_visible(grid: VoxelGrid, views: np.ndarray, cfg: Phase2Config,
             continue
         clear = clear_fn(idx[s + ui] + 0.5, v_vox[pj])  # voxel coordinates
         counts[ok_view] += np.bincount(pj[clear], minlength=len(v_c))
+    return counts
+
+
+def _count_gl(grid: VoxelGrid, blocked: np.ndarray, idx: np.ndarray, faces: np.ndarray, views: np.ndarray,
+              cfg: Phase2Config, stats: dict | None) -> np.ndarray:
+    """`count_visible` on the GL pass: exact for every view up to cfg.gl_exact_pairs pairs,
+    else ranked on a voxel subsample and exact for the best cfg.gl_refine_views views."""
+    gl = _gl_counter()
+    dist = blocker_distance(blocked)
+    v_vox = grid.to_voxel(views)
+    args = (grid.voxel_m, cfg.min_range_m, cfg.max_range_m, np.cos(cfg.max_grazing_rad))
+    passes = []
+
+    def run(sel_voxels, sel_views):
+        c, rays = gl.count(dist, idx[sel_voxels], faces[sel_voxels], v_vox[sel_views], *args)
+        passes.append((len(idx[sel_voxels]) * len(v_vox[sel_views]), rays))
+        return c
+
+    every = slice(None)
+    if len(idx) * len(views) <= cfg.gl_exact_pairs or len(views) <= cfg.gl_refine_views:
+        counts = run(every, every)
+    else:
+        stride = cfg.gl_estimate_stride
+        counts = run(slice(None, None, stride), every) * stride
+        top = np.argsort(-counts, kind="stable")[:cfg.gl_refine_views]
+        counts[top] = run(every, top)
+    if stats is not None:
+        stats["pairs"] = stats.get("pairs", 0) + sum(p for p, _ in passes)
+        stats["rays"] = stats.get("rays", 0) + sum(r for _, r in passes)
     return counts
 
 

@@ -17,7 +17,8 @@ import numpy as np
 
 from ibr.gl import load_compute, shared_context
 
-GROUP = 64           # local size of the compute shader (voxels per work group)
+GROUP = 64           # local size of the compute shader (views per work group)
+VOXELS_PER_INVOCATION = 64  # boundary voxels one invocation walks to its view
 MAX_GROUPS_Y = 65535  # GL's guaranteed limit on work groups per dispatch axis
 
 
@@ -31,7 +32,8 @@ class GLVoxelVisibility:
 
     def __init__(self, ctx: moderngl.Context | None = None):
         self.ctx = ctx or shared_context()
-        self.program = load_compute(self.ctx, "voxel_visibility", {"TIE_RULE": int(__import__("os").environ.get("TIE", "1"))}, package="explore")
+        self.program = load_compute(self.ctx, "voxel_visibility",
+                                    {"VOXELS_PER_INVOCATION": VOXELS_PER_INVOCATION}, package="explore")
 
     def count(self, distance: np.ndarray, voxels: np.ndarray, faces: np.ndarray, views: np.ndarray,
               voxel_m: float, min_range_m: float, max_range_m: float, cos_max: float
@@ -56,10 +58,11 @@ class GLVoxelVisibility:
         for name, value in uniforms.items():
             if name in prog:
                 prog[name] = value
-        gx = (len(voxels) + GROUP - 1) // GROUP
-        for offset in range(0, n_views, MAX_GROUPS_Y):
-            prog["u_view_offset"] = offset
-            prog.run(gx, min(MAX_GROUPS_Y, n_views - offset))
+        gx = (n_views + GROUP - 1) // GROUP
+        blocks = (len(voxels) + VOXELS_PER_INVOCATION - 1) // VOXELS_PER_INVOCATION
+        for offset in range(0, blocks, MAX_GROUPS_Y):
+            prog["u_voxel_offset"] = offset
+            prog.run(gx, min(MAX_GROUPS_Y, blocks - offset))
         self.ctx.memory_barrier()
         counts = np.frombuffer(bufs[3].read(), "u4").astype(np.int64)
         for b in bufs:
