@@ -48,7 +48,7 @@ from ibr.render.blending_field import (angle_penalty, blending_field, field_samp
                                       resolution_penalty, source_candidates, triangle_weights, triangulate)
 from ibr.render.hole_filling import GLPushPull, push_pull
 from ibr.scene import Scene
-from ibr.source_views import SourceViews, project_with
+from ibr.source_views import SourceViews
 
 MAX_K = 8
 BLENDINGS = ("field", "pixel")
