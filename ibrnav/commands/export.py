@@ -7,11 +7,11 @@ moved."""
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 from pathlib import Path
 
 from ibr.errors import InputError
+from ibrnav import jsonout
 from ibrnav.commands.scene import SCENE_HELP
 
 log = logging.getLogger(__name__)
@@ -77,13 +77,12 @@ def run(args: argparse.Namespace) -> int:
         out = textured(mesh, scene) if not args.no_texture else mesh
         export_mesh(out, args.mesh)
         summary.update(mesh=str(args.mesh), textured=not args.no_texture)
-    print(json.dumps(summary, indent=2, allow_nan=False))
+    print(jsonout.dumps(summary))
     return 0
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("export", help="write a scene as a COLMAP model and/or a (textured) mesh file",
-                              formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p = subparsers.add_parser("export", help="write a scene as a COLMAP model and/or a (textured) mesh file")
     p.add_argument("scene", help=SCENE_HELP)
     p.add_argument("--colmap", metavar="DIR", help="write a COLMAP model folder here (cameras, images, points, "
                    "photos, mesh.ply); pycolmap.Reconstruction(DIR) and `ibrnav` commands read it")
