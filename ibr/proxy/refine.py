@@ -6,11 +6,12 @@ PnP fixes): good to a few centimetres and degrees, not to a pixel. COLMAP's poin
 triangulator (SIFT features, exhaustive matching with geometric verification, then
 triangulation against the fixed poses; Schoenberger & Frahm 2016, section 4.5) gives tracks
 on those poses; a global bundle adjustment (intrinsics fixed) then moves poses and points to
-minimise the reprojection error (a Cauchy loss; observations it cannot explain are dropped and
-the adjustment repeated, as COLMAP's global refinement does). Bundle adjustment fixes its gauge on two cameras, so the
-refined cameras are mapped back onto the given ones by the similarity that best aligns their
-orientations and centres (`align_frames`): the world frame, its scale and its floor stay the given ones, and
-what moved is the disagreement between the photos and their poses.
+minimise the reprojection error (a Cauchy loss; observations it cannot explain are dropped
+and the adjustment repeated, as COLMAP's global refinement does). The adjustment's gauge is
+held by the two cameras furthest apart, and the result is mapped back onto the given poses
+by the similarity that best aligns all cameras' orientations and centres (`align_frames`):
+the world frame, its scale and its floor stay the given ones, and what moved is the
+disagreement between the photos and their poses.
 
 Units: metres, degrees in the report; reprojection errors in pixels.
 """
@@ -172,11 +173,31 @@ def refine_poses(cameras: list[Camera], images: list[np.ndarray], config: Refine
     options.ceres.loss_function_scale = config.loss_scale_px
     with colmap_errors_only():
         for _ in range(config.rounds):
-            pycolmap.bundle_adjustment(rec, options)
+            pycolmap.create_default_bundle_adjuster(options, _gauge_config(rec), rec).solve()
             rec.update_point_3d_errors()  # the adjustment leaves the points' stored errors as they were
             pycolmap.ObservationManager(rec).filter_all_points3D(config.max_error_px, config.min_angle_deg)
     after = rec.compute_mean_reprojection_error()
     return _aligned_result(cameras, rec, index, before, after, config)
+
+
+def _gauge_config(rec):
+    """Adjust every image, with the gauge fixed by holding the two cameras furthest apart
+    (their poses as given): COLMAP's default fixes one camera and one coordinate of the
+    next, which leaves the scale nearly free when the robot took several photos from one
+    spot, and the adjustment can then collapse. `align_frames` afterwards spreads the two
+    cameras' own pose errors over all cameras."""
+    import pycolmap
+
+    config = pycolmap.BundleAdjustmentConfig()
+    ids = sorted(rec.reg_image_ids())
+    for i in ids:
+        config.add_image(i)
+    centres = np.array([rec.image(i).projection_center() for i in ids])
+    d = np.linalg.norm(centres[:, None] - centres[None], axis=2)
+    a, b = np.unravel_index(np.argmax(d), d.shape)
+    for k in (a, b):
+        config.set_constant_rig_from_world_pose(rec.image(ids[k]).frame_id)
+    return config
 
 
 def _aligned_result(cameras: list[Camera], rec, index: dict[int, int], before: float, after: float,
