@@ -38,7 +38,8 @@ def test_refine_moves_noisy_poses_towards_the_truth(office, gl_ctx):
     images = [office.photograph(c) for c in truth]
     rng = np.random.default_rng(1)
     spacing = 3.0 / 4  # between stops, metres
-    noisy_poses = poses + np.c_[rng.normal(0, 0.05 * spacing, (len(poses), 2)), rng.normal(0, np.radians(1), len(poses))]
+    noisy_poses = poses + np.c_[rng.normal(0, 0.05 * spacing, (len(poses), 2)),
+                                rng.normal(0, np.radians(1), len(poses))]
     noisy = [robot_camera(p, K, size, mount) for p in noisy_poses]
     try:
         res = refine_poses(noisy, images)
@@ -48,6 +49,7 @@ def test_refine_moves_noisy_poses_towards_the_truth(office, gl_ctx):
     assert error(res.cameras) < 0.5 * error(noisy)
     report = res.report()
     moved = [np.linalg.norm(a.center - b.center) for a, b in zip(res.cameras, noisy)]
-    assert report["moved_m_max"] == pytest.approx(max(moved)) and report["moved_m_median"] == pytest.approx(np.median(moved))
+    assert report["moved_m_max"] == pytest.approx(max(moved))
+    assert report["moved_m_median"] == pytest.approx(np.median(moved))
     assert report["reprojection_px_after"] < report["reprojection_px_before"]
     assert [c.name for c in res.cameras] == [c.name for c in noisy]
