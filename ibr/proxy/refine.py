@@ -73,14 +73,23 @@ class Refinement:
     error_after_px: float
     unconstrained: list[str]
 
+    def moved_far(self, factor: float = 5.0) -> list[str]:
+        """Cameras that moved more than `factor` times the median camera movement (in metres
+        or degrees; a ratio, so scale-free): worth a look, since a camera with a few wrong
+        matches can be pulled off while its reprojection error stays small."""
+        far = ((self.moved_m > factor * np.median(self.moved_m))
+               | (self.turned_deg > factor * np.median(self.turned_deg)))
+        return [c.name for c, f in zip(self.cameras, far) if f]
+
     def report(self) -> dict:
-        """How far the poses moved: median and max, metres and degrees; errors in pixels."""
+        """How far the poses moved: median and max, metres and degrees; errors in pixels;
+        the cameras left as given (`unconstrained`) and those that moved far (`moved_far`)."""
         return {"cameras": len(self.cameras), "points": len(self.points),
                 "moved_m_median": float(np.median(self.moved_m)), "moved_m_max": float(self.moved_m.max()),
                 "turned_deg_median": float(np.median(self.turned_deg)),
                 "turned_deg_max": float(self.turned_deg.max()),
                 "reprojection_px_before": self.error_before_px, "reprojection_px_after": self.error_after_px,
-                "unconstrained": self.unconstrained}
+                "unconstrained": self.unconstrained, "moved_far": self.moved_far()}
 
 
 def align_frames(ba_from_cam: np.ndarray, world_from_cam: np.ndarray, rounds: int = 3

@@ -9,7 +9,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from ibr.camera import intrinsics_from_fov, rigid
-from ibr.proxy.refine import RefineError, align_frames, refine_poses
+from ibr.proxy.refine import RefineError, Refinement, align_frames, refine_poses
 
 
 def test_align_frames_recovers_a_similarity_for_cameras_in_a_line():
@@ -53,3 +53,13 @@ def test_refine_moves_noisy_poses_towards_the_truth(office, gl_ctx):
     assert report["moved_m_median"] == pytest.approx(np.median(moved))
     assert report["reprojection_px_after"] < report["reprojection_px_before"]
     assert [c.name for c in res.cameras] == [c.name for c in noisy]
+
+
+def test_the_report_names_cameras_that_moved_far():
+    from ibr.camera import Camera
+
+    cams = [Camera(np.eye(3), 4, 3, name=f"c{i}") for i in range(5)]
+    moved, turned = np.array([0.01, 0.012, 0.011, 0.2, 0.009]), np.array([0.1, 0.1, 0.1, 0.1, 0.9])
+    report = Refinement(cams, np.zeros((0, 3)), np.zeros((0, 3), np.uint8), moved, turned, 1.0, 0.2, []).report()
+    assert report["moved_far"] == ["c3", "c4"]  # 18x the median distance; 9x the median turn
+    assert report["moved_m_median"] == pytest.approx(0.011) and report["turned_deg_max"] == pytest.approx(0.9)
