@@ -185,17 +185,18 @@ def load_colmap(folder: str | Path, image_dir: str | Path | None = None) -> Scen
     return Scene(folder.name, views, mesh=mesh, points=xyz, point_colors=rgb, root=folder)
 
 
-def load_capture(folder: str | Path, refine: bool = False) -> Scene:
+def load_capture(folder: str | Path, refine: bool = False, use_model: bool = True) -> Scene:
     """A robot's capture-session folder (`ibr.capture` reads its layout): its final model
-    (`model/`: COLMAP model and mesh) when the mission wrote one, else the photos at the
-    filter's logged poses with the mission's last map (mesh and points) when there is one.
+    (`model/`: COLMAP model and mesh) when the mission wrote one and `use_model`, else every
+    photo at the filter's logged pose with the mission's last map (mesh and points) when
+    there is one.
     `refine`: pycolmap triangulation with the poses fixed, then bundle adjustment
     (`ibr.proxy.refine`); how far the poses moved is `scene.meta["refinement"]`.
     `scene.meta["poses"]`: "model" or "filter", "+ refined" when refined."""
     from ibr.capture import PHOTOS, read_capture
 
     cap = read_capture(folder)
-    if cap.model is not None:
+    if use_model and cap.model is not None:
         loaded = load_colmap(cap.model, cap.folder / PHOTOS)
         views = [replace(v, camera=v.camera.with_pose(v.camera.cam_from_world, Path(v.name).stem))
                  for v in loaded]

@@ -286,10 +286,10 @@ def _reconcile_photos(folder: Path, records: list[dict]) -> dict:
 
 
 def load_session_scene(folder: str | Path, refine: bool = False) -> "Scene":
-    """The session as a `Scene` (`ibr.scene.load_capture`: the final model when the mission
-    wrote one, else a view per photo at its logged world `pose`), after repairing the folder
-    as `CaptureSession.open` does."""
+    """The session as a `Scene` of every photo at its logged world `pose` (the odometry pose
+    when none was logged; `ibr.scene.load_capture` without the final model, which
+    `load_scene` prefers), after repairing the folder as `CaptureSession.open` does."""
     from ibr.scene import load_capture  # (trimesh is slow to import; writers don't need it)
 
     CaptureSession.open(folder).close()
-    return load_capture(folder, refine)
+    return load_capture(folder, refine, use_model=False)

@@ -72,6 +72,9 @@ def test_session_with_model_loads_the_model(session, tmp_path):
         s.write_model(moved[:-1], scene.mesh, scene.points, scene.point_colors)  # last photo not in the model
     loaded = load_scene(copy)
     assert loaded.meta["poses"] == "model"
+    from robot.session import load_session_scene  # the raw session: every photo at its logged pose
+
+    assert len(load_session_scene(copy)) == len(cams)
     assert [v.name for v in loaded] == [c.name for c in moved[:-1]]
     for v, c in zip(loaded, moved):
         np.testing.assert_allclose(v.camera.K, c.K, atol=1e-6)
