@@ -36,8 +36,10 @@ class ConfidenceConfig:
 
     agreement: tuple[float, float] = (0.75, 0.95)
     """explained / reference: no confidence at the first ratio, full at the second."""
-    support: tuple[float, float] = (0.02, 0.10)
-    """Trusted share of the photo's pixels: no confidence at the first, full at the second."""
+    support: tuple[float, float] = (0.005, 0.02)
+    """Trusted share of the photo's pixels (at the finest width, 384 px): no confidence at the
+    first, full at the second (about 500 and 2,000 trusted pixels: enough to decide, while
+    the agreement test rejects wrong poses)."""
     rival_margin: float = 0.01
     """A distinct pose whose cost is within this (robust-cost units) of the best is a rival."""
     distinct_px: float = 8.0
