@@ -28,6 +28,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "scenic": ("ibrnav.commands.scenic", "scenic route planning with one or two cameras (Mendez et al.)"),
     "robot": ("ibrnav.commands.robot_check", "the real robot (LEGO NXT over Bluetooth serial)"),
     "bench": ("ibrnav.commands.bench", "run the speed figures (JSON out)"),
+    "export": ("ibrnav.commands.export", "write a scene as a COLMAP model and/or a (textured) mesh file"),
 }
 """command name -> (module with register/run, one-line help for `ibrnav --help`)."""
 log = logging.getLogger("ibrnav")

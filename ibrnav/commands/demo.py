@@ -83,6 +83,8 @@ def run(args: argparse.Namespace) -> int:
                              mission_config(args), np.random.default_rng(args.seed), obs, random_config(args),
                              SessionJournal(session, robot, replayable=sim))
         obs.progress.close()
+        final = result.robot_map
+        session.write_model([final.cameras[i] for i in sorted(final.cameras)], final.mesh, final.points, final.colors)
         session.commit(sum(r["kind"] == "commit" for r in session.records),
                        {"stage": "finished", "stop_reason": result.stop_reason, "path_m": result.path_m})
         log.info(f"mission finished ({result.stop_reason}); final model: {len(result.robot_map.points)} points, "

@@ -59,8 +59,9 @@ def run(args: argparse.Namespace) -> int:
     spread_m, spread_deg = parse_floats(args.spread, 2, "--spread")
     scene = load_scene(args.scene)
     camera = query_camera(scene, image, args.intrinsics_of, args.query)
-    name = Path(args.query).name
-    mapped = scene.without(name) if any(v.name == name for v in scene.views) else scene
+    query = Path(args.query).resolve()  # one of the scene's own photos is left out of its map
+    same = [v.name for v in scene.views if v.name == query.name or (v.path is not None and v.path.resolve() == query)]
+    mapped = scene.without(same[0]) if same else scene
     log.info(f"building the {args.method} map from {len(mapped)} photos")
     loc = SceneLocalizer(mapped, args.method, LocConfig(model=args.model))
     recording.rerun_setup(args, "ibrnav_localize", "localize.rrd")
