@@ -7,11 +7,11 @@ moved."""
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 from pathlib import Path
 
 from ibr.errors import InputError
+from ibrnav import jsonout
 from ibrnav.commands.scene import SCENE_HELP
 
 log = logging.getLogger(__name__)
@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
         out = textured(mesh, scene) if not args.no_texture else mesh
         export_mesh(out, args.mesh)
         summary.update(mesh=str(args.mesh), textured=not args.no_texture)
-    print(json.dumps(summary, indent=2, allow_nan=False))
+    print(jsonout.dumps(summary))
     return 0
 
 
