@@ -81,14 +81,16 @@ def judge(best: Alignment, reference: float, rival_gap: float | None,
     rival = 1.0 if rival_gap is None else ramp(rival_gap, 0.0, config.rival_margin)
     confidence = agreement * support * rival
     reason = ""
-    if confidence < 0.5:
-        if support < 0.5:
+    if confidence < 0.5:  # the first failed test, in order of how much it says
+        if agreement < 0.5:
+            reason = (f"the model explains {best.explained:.2f} of the photo's structure, "
+                      f"{ratio:.0%} of what it explains at its own photos ({reference:.2f})")
+        elif support < 0.5:
             reason = f"the trusted model covers only {best.trusted:.1%} of the photo"
         elif rival < 0.5:
             reason = f"a distinct pose explains the photo almost as well (cost gap {rival_gap:.4f})"
         else:
-            reason = (f"the model explains {best.explained:.2f} of the photo's structure, "
-                      f"{ratio:.0%} of what it explains at its own photos ({reference:.2f})")
+            reason = f"agreement {agreement:.2f} x support {support:.2f} x no rival {rival:.2f} is below 0.5"
     return Verdict(confidence >= 0.5, confidence, reason, best.explained, reference, best.trusted, rival_gap)
 
 
