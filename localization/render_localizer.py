@@ -48,6 +48,11 @@ class RenderLocalizerConfig:
     likelihood: LikelihoodConfig = field(default_factory=lambda: LikelihoodConfig(score="robust"))
     confidence: ConfidenceConfig = field(default_factory=ConfidenceConfig)
     trust: TrustConfig = field(default_factory=TrustConfig)
+    """Trust of the fine model's faces (support in pixels at 384 px, its finest width)."""
+    coarse_trust: TrustConfig = field(default_factory=lambda: TrustConfig(work_width=96))
+    """Trust of the coarse model's faces, judged at the width it is compared at (24-96 px): a
+    depth error that displaces the texture by a pixel at 384 px is a quarter pixel there, so
+    faces further from the points still serve the coarse search."""
     fine_faces: int = 16000
     """Triangles of the fine model (alignment at the finest widths and the verdict)."""
     coarse_faces: int = 3000
@@ -85,14 +90,14 @@ class ModelLevel:
 
 
 def model_level(mesh: trimesh.Trimesh, faces: int, photos: tuple[list[Camera], list[np.ndarray]] | None,
-                points: np.ndarray | None, config: RenderLocalizerConfig, ctx: moderngl.Context | None,
-                light: Light | None) -> ModelLevel:
+                points: np.ndarray | None, trust: TrustConfig, config: RenderLocalizerConfig,
+                ctx: moderngl.Context | None, light: Light | None) -> ModelLevel:
     """A `ModelLevel` of `mesh` decimated to `faces`, textured from `photos` (cameras, images)
-    with trust from `points` when given."""
+    with trust (`trust`) from `points` when given."""
     lean = lean_mesh(mesh, faces)
     texture = None
     if photos is not None:
-        texture = PhotoTexture(lean, photos[0], photos[1], ctx=ctx, points=points, trust_config=config.trust)
+        texture = PhotoTexture(lean, photos[0], photos[1], ctx=ctx, points=points, trust_config=trust)
         lean = texture.textured_mesh()
     renderer = likelihood_renderer(lean, ctx)
     likelihood = BatchedLikelihood(renderer, config.likelihood, light)
@@ -115,8 +120,8 @@ class RenderModel:
                  light: Light | None = None):
         self.config, self.cameras, self.images, self.light = config, list(cameras), list(images), light
         photos = (self.cameras, self.images) if textured else None
-        self.fine = model_level(mesh, config.fine_faces, photos, points, config, ctx, light)
-        self.coarse = model_level(mesh, config.coarse_faces, photos, points, config, ctx, light)
+        self.fine = model_level(mesh, config.fine_faces, photos, points, config.trust, config, ctx, light)
+        self.coarse = model_level(mesh, config.coarse_faces, photos, points, config.coarse_trust, config, ctx, light)
         self.depth_m = typical_depth(self.fine.renderer, self.cameras)
         """Median depth (metres) of the model seen from the map photos: the scene's scale."""
         self.reference = self.reference_explained()

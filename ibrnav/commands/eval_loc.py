@@ -41,7 +41,8 @@ def run(args: argparse.Namespace) -> int:
         rr.log("plots/confidence", rr.Scalars(row["confidence"]))
 
     out = evaluate_localization(scene, args.method, args.trials or len(scene), spread_m, args.spread_deg,
-                                args.seed, LocConfig(model=args.model), on_trial=on_trial)
+                                args.seed, LocConfig(model=args.model), on_trial=on_trial,
+                                queries=args.queries)
     recording.rerun_teardown(args)
     if args.json:
         jsonout.write(args.json, out)
@@ -60,6 +61,9 @@ def register(subparsers) -> None:
                    "the median depth of its triangulated points (10%%) (default: %(default)s)")
     e.add_argument("--spread-deg", type=float, default=30.0, help="prior rotation spread (deg)")
     e.add_argument("--seed", type=int, default=0, help="seed of the priors and the filter")
+    e.add_argument("--queries", choices=("held-out", "novel"), default="held-out",
+                   help="held-out: each query is one of the scene's photos, mapped without it; novel "
+                   "(synthetic scenes): new photos of the world near the map's, against one map of all")
     e.add_argument("--json", help="write per-trial results and the summary here")
     add_model_arg(e)
     recording.add_rerun_args(e)
