@@ -6,7 +6,7 @@ the photos beside it, and the scene's mesh, so `ibr.scene.load_scene(folder)` gi
 scene back (same cameras, same mesh):
 
     FOLDER/cameras.bin, images.bin, points3D.bin     PINHOLE cameras, poses, points with tracks
-    FOLDER/images/NAME.png                           the photos, lossless
+    FOLDER/images/NAME                               the photos, lossless (copied, or PNG)
     FOLDER/mesh.ply                                  the mesh (proxy or the scene's own)
 
 A capture session's final model (`write_model`, what `ibrnav demo` writes into `model/`) is
@@ -19,6 +19,7 @@ the mesh (a depth test). Frames: world metres; COLMAP's pixel convention through
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +29,7 @@ from PIL import Image
 from ibr.camera import Camera
 from ibr.colmap import observations, to_reconstruction
 from ibr.errors import InputError
-from ibr.scene import IMAGE_SUFFIXES, MODEL_MESH, Scene
+from ibr.scene import IMAGE_SUFFIXES, MODEL_MESH, Scene, SceneError, read_image
 
 MESH_SUFFIXES = (".ply", ".obj")
 
@@ -72,6 +73,25 @@ def _check_folder(out: Path) -> None:
         raise ExportError(f"{out}: its parent folder {out.parent} does not exist")
 
 
+def write_photo(view, folder: Path) -> str:
+    """Write a view's photo into `folder` without loss; returns its file name. The original
+    file is copied when it decodes to the view's pixels (e.g. a Strecha JPEG); otherwise
+    (an undistorted or synthetic photo) it is written as PNG."""
+    name = image_file_name(view.name)
+    src = view.path
+    if src is not None and Path(src).is_file() and Path(src).suffix.lower() == Path(name).suffix.lower():
+        try:
+            same = np.array_equal(read_image(src), view.image)
+        except SceneError:
+            same = False
+        if same:
+            shutil.copyfile(src, folder / name)
+            return name
+    name = f"{Path(name).stem}.png"
+    Image.fromarray(view.image).save(folder / name)
+    return name
+
+
 def export_colmap(scene: Scene, out: str | Path, mesh: trimesh.Trimesh | None = None,
                   points: np.ndarray | None = None, colors: np.ndarray | None = None) -> Path:
     """Write `scene` as a COLMAP model folder `out` (see the module docstring): its cameras,
@@ -81,11 +101,8 @@ def export_colmap(scene: Scene, out: str | Path, mesh: trimesh.Trimesh | None = 
     _check_folder(out)
     mesh = scene.mesh if mesh is None else mesh
     points, colors = (scene.points, scene.point_colors) if points is None else (points, colors)
-    names = [image_file_name(v.name) for v in scene.views]
     (out / "images").mkdir(parents=True, exist_ok=True)
-    for name, view in zip(names, scene.views):
-        Image.fromarray(view.image).save(out / "images" / name, **({"quality": 95} if name.lower().endswith(
-            (".jpg", ".jpeg")) else {}))
+    names = [write_photo(view, out / "images") for view in scene.views]
     reconstruction_of(scene.cameras, names, points, colors, mesh).write(str(out))
     if mesh is not None:
         export_mesh(mesh, out / MODEL_MESH)

@@ -166,3 +166,27 @@ def test_neither_scene_nor_session_is_named(tmp_path):
     (tmp_path / "session.json").write_text("{not json")
     with pytest.raises(InputError, match="session.json: corrupt"):
         load_scene(tmp_path)
+
+
+def test_colmap_export_copies_jpeg_photos_unchanged(tmp_path):
+    """A Strecha folder's JPEGs go into the export as they are (re-encoding would change them)."""
+    from PIL import Image
+
+    from ibr.camera import Camera
+
+    K = intrinsics_from_fov(60, 64, 48)
+    rng = np.random.default_rng(2)
+    for d in ("images", "cameras"):
+        (tmp_path / "s" / d).mkdir(parents=True)
+    for i in range(3):
+        cam = Camera.look_at([i, -3, 1], [i, 0, 1], K, 64, 48, name=f"{i:04d}.jpg")
+        Image.fromarray(rng.integers(0, 255, (48, 64, 3), dtype=np.uint8)).save(tmp_path / "s" / "images" / cam.name)
+        (tmp_path / "s" / "cameras" / f"{cam.name}.camera").write_text(cam.to_strecha_text())
+    scene = load_scene(tmp_path / "s")
+    out = export_colmap(scene, tmp_path / "c")
+    for v in scene:
+        assert (out / "images" / v.name).read_bytes() == v.path.read_bytes()
+    back = load_scene(out)
+    assert [v.name for v in back] == [v.name for v in scene]
+    assert all(np.array_equal(a.image, b.image) for a, b in zip(back, scene))
+    assert back.mesh is None and len(back.points) == 0  # no mesh, no points given: none written
