@@ -29,19 +29,20 @@ def _camera_ids(cameras: list[Camera]) -> tuple[list[Camera], list[int]]:
     return unique, ids
 
 
-def observations(cameras: list[Camera], points: np.ndarray,
-                 depths: list[np.ndarray] | None = None, depth_tolerance: float = 0.02) -> list[np.ndarray]:
+def observations(cameras: list[Camera], points: np.ndarray, depth_of=None,
+                 depth_tolerance: float = 0.02) -> list[np.ndarray]:
     """Per camera, the indexes of `points` (N, 3) it sees: in front, inside the image, and,
-    given each camera's depth map `depths` (H, W) metres (0: nothing there), not behind the
-    surface by more than `depth_tolerance` of the depth (a fraction: scale-free)."""
+    given `depth_of(n)` -> camera n's depth map (H, W) metres (0: nothing there; called once
+    per camera, so only one map is held at a time), not behind the surface by more than
+    `depth_tolerance` of the depth (a fraction: scale-free)."""
     seen = []
     for n, cam in enumerate(cameras):
         uv, z = cam.project(points)
         ok = (z > 0) & np.all((uv > -0.5) & (uv < [cam.width - 0.5, cam.height - 0.5]), axis=1)
-        if depths is not None and ok.any():
+        if depth_of is not None and ok.any():
             idx = np.flatnonzero(ok)
             px = np.clip(np.rint(uv[idx]).astype(int), 0, [cam.width - 1, cam.height - 1])
-            d = depths[n][px[:, 1], px[:, 0]]
+            d = depth_of(n)[px[:, 1], px[:, 0]]
             ok[idx] = (d <= 0) | (z[idx] <= d * (1 + depth_tolerance))
         seen.append(np.flatnonzero(ok))
     return seen

@@ -43,26 +43,23 @@ def image_file_name(name: str) -> str:
     return name if Path(name).suffix.lower() in IMAGE_SUFFIXES else f"{name}.png"
 
 
-def mesh_depths(mesh: trimesh.Trimesh | None, cameras: list[Camera]) -> list[np.ndarray] | None:
-    """Camera-z depth maps (H, W) metres of `mesh` in each camera (0: nothing), None without a mesh."""
-    if mesh is None or len(mesh.faces) == 0:
-        return None
-    from ibr.mesh_renderer import MeshRenderer
-
-    renderer = MeshRenderer(mesh)
-    try:
-        return [renderer.render(c).depth for c in cameras]
-    finally:
-        renderer.release()
-
-
 def reconstruction_of(cameras: list[Camera], names: list[str], points: np.ndarray | None,
                       colors: np.ndarray | None, mesh: trimesh.Trimesh | None):
     """The `pycolmap.Reconstruction` of posed cameras and points, with tracks from
-    `ibr.colmap.observations` (depth-tested against `mesh` when given)."""
+    `ibr.colmap.observations` (depth-tested against `mesh`, rendered per camera, when given)."""
     seen = None
     if points is not None and len(points):
-        seen = observations(cameras, np.asarray(points, float), mesh_depths(mesh, cameras))
+        renderer = None
+        if mesh is not None and len(mesh.faces):
+            from ibr.mesh_renderer import MeshRenderer
+
+            renderer = MeshRenderer(mesh)
+        try:
+            depth_of = (lambda n: renderer.render(cameras[n]).depth) if renderer is not None else None
+            seen = observations(cameras, np.asarray(points, float), depth_of)
+        finally:
+            if renderer is not None:
+                renderer.release()
     return to_reconstruction(cameras, names, points, colors, seen)
 
 
