@@ -121,7 +121,7 @@ def write_model(folder: str | Path, cameras: list[Camera], mesh: trimesh.Trimesh
 
 def export_mesh(mesh: trimesh.Trimesh, path: str | Path) -> Path:
     """Write `mesh` as .ply or .obj. A textured mesh (trimesh `TextureVisuals` with an image)
-    keeps its texture: .obj with its .mtl and the texture image beside it; .ply with texture
+    keeps its texture: .obj with `STEM.mtl` and `STEM.png` beside it; .ply with texture
     coordinates and the image beside it, named in a `comment TextureFile` header line
     (MeshLab's convention, which trimesh also reads). Otherwise vertex colours go with it."""
     path = Path(path)
@@ -130,10 +130,15 @@ def export_mesh(mesh: trimesh.Trimesh, path: str | Path) -> Path:
     if not path.parent.is_dir():
         raise ExportError(f"{path}: folder {path.parent} does not exist")
     image = getattr(getattr(mesh.visual, "material", None), "image", None)
-    if path.suffix.lower() == ".obj":
-        mesh.export(path)  # trimesh writes the .mtl and the texture beside it
-        return path
     mesh = mesh.copy()
+    if path.suffix.lower() == ".obj":
+        if image is not None:  # the .mtl and the texture beside it, named after the file
+            mesh.visual.material.name = path.stem
+        text, files = trimesh.exchange.obj.export_obj(mesh, return_texture=True, mtl_name=f"{path.stem}.mtl")
+        path.write_text(text)
+        for name, data in files.items():
+            (path.parent / name).write_bytes(data)
+        return path
     mesh.vertex_attributes.clear()  # renderer-only attributes (e.g. trust) are not part of the file
     data = trimesh.exchange.ply.export_ply(mesh, encoding="binary")
     if image is not None:

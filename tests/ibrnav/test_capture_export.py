@@ -125,6 +125,7 @@ def test_mesh_export_textured_and_plain(tmp_path, suffix, gl_ctx):
     tex = box.copy()
     tex.visual = trimesh.visual.TextureVisuals(uv=uv, image=Image.fromarray(atlas))
     back = trimesh.load(export_mesh(tex, tmp_path / f"tex{suffix}"), process=False, force="mesh")
+    assert (tmp_path / ("tex.png" if suffix == ".obj" else "tex_texture.png")).is_file()  # named after the file
     assert isinstance(back.visual, trimesh.visual.TextureVisuals)
     colors = back.visual.to_color().vertex_colors[:, :3]  # the texture read back at each vertex
     white = back.vertices[:, 0] > 0
