@@ -70,9 +70,10 @@ class RenderLocalizerConfig:
 
 @dataclass
 class ModelLevel:
-    """One level of detail of the map: its renderer, batched likelihood and texture (None
-    for a mesh with its own texture or colours)."""
+    """One level of detail of the map: the mesh it renders (world metres), its renderer,
+    batched likelihood and texture (None for a mesh with its own texture or colours)."""
 
+    mesh: trimesh.Trimesh
     renderer: MeshRenderer
     likelihood: BatchedLikelihood
     texture: PhotoTexture | None = None
@@ -95,7 +96,7 @@ def model_level(mesh: trimesh.Trimesh, faces: int, photos: tuple[list[Camera], l
         lean = texture.textured_mesh()
     renderer = likelihood_renderer(lean, ctx)
     likelihood = BatchedLikelihood(renderer, config.likelihood, light)
-    level = ModelLevel(renderer, likelihood, texture)
+    level = ModelLevel(lean, renderer, likelihood, texture)
     likelihood.focus = level.focus
     return level
 

@@ -13,15 +13,13 @@ SITE: `synthetic:NAME[?seed=N]` (the world's mesh and free space), or a mesh fil
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import time
-from pathlib import Path
 
 import numpy as np
 
 from ibr.errors import InputError
-from ibrnav import recording
+from ibrnav import jsonout, recording
 
 RAY_BACKENDS = ("gl", "embree", "walk")  # explore.vueplan.phase2.RAY_BACKENDS (imported lazily there)
 
@@ -99,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
                                                             p1.views[tour.order], rng, vv)
     out["tour_length_m"] = tour.length_m
     if args.json:
-        Path(args.json).write_text(json.dumps(out, indent=2) + "\n")
+        jsonout.write(args.json, out)
     recording.rerun_teardown(args)
     return 0
 
@@ -111,6 +109,7 @@ def run_phase2(args, mesh, plan, renderer, height, views_xy, rng, vv) -> tuple[l
                                         reachable_views)
     from explore.vueplan.scan_simulator import ScanConfig, simulate_scan
     from explore.vueplan.voxel_grid import VoxelGrid, insert_scan
+    from ibr.progress import counter, progress
 
     scfg = ScanConfig(resolution_deg=args.scan_resolution, min_range_m=args.min_range,
                       max_range_m=args.max_range, range_noise_m=args.range_noise)
@@ -131,7 +130,7 @@ def run_phase2(args, mesh, plan, renderer, height, views_xy, rng, vv) -> tuple[l
         return scan
 
     log.info(f"voxel grid {grid.shape} ({np.prod(grid.shape):,} voxels of {args.voxel} m)")
-    for xy in views_xy:
+    for xy in progress(views_xy, desc="Phase I scans", logger=log):
         scan = acquire(np.r_[xy, height])
         insert_scan(grid, scan.origin, scan.points, scan.no_return, scan.max_range_m)
     p2cfg = Phase2Config(min_range_m=args.min_range, max_range_m=args.max_range,
@@ -146,6 +145,7 @@ def run_phase2(args, mesh, plan, renderer, height, views_xy, rng, vv) -> tuple[l
     def on_row(row, counts):
         k = len(rows_seen)
         rows_seen.append(row)
+        bar.update()
         vv.log_voxels(step, grid)
         vv.log_nbv_candidates(step, candidates, counts, row.nbv)
         vv.log_phase2_row(step, row)
@@ -153,7 +153,9 @@ def run_phase2(args, mesh, plan, renderer, height, views_xy, rng, vv) -> tuple[l
                   f"best view sees {row.visible_to_nbv} ({row.seconds:.1f} s)")
 
     rows_seen: list = []
+    bar = counter(args.max_nbv + 1, "NBV iterations", log)
     rows = plan_phase2(grid, candidates, acquire, p2cfg, lambda: coverage.fraction, on_row)
+    bar.close()
     t = time.perf_counter()
     poses = np.vstack([candidates, np.c_[views_xy, np.full(len(views_xy), height)]])  # + the Phase I scans
     in_sight = float(coverage.in_sight(mesh, poses, args.min_range, args.max_range).mean())

@@ -40,6 +40,10 @@ def test_demo_runs_the_capture_mission_into_a_recording_and_a_session(tmp_path):
     photos = [r for r in log if r["kind"] == "photo"]
     assert sum(r["stage"] != "localise" for r in photos) == 44
     assert len(list((capture / "photos").glob("*.png"))) == len(photos)
+    from ibr.scene import load_scene  # the capture folder is a scene: the final model it wrote
+
+    scene = load_scene(capture)
+    assert scene.meta["poses"] == "model" and len(scene) >= 20 and scene.mesh is not None
 
 
 def test_drive_records_to_a_default_file_without_flags(tmp_path):
