@@ -19,7 +19,7 @@ from ibr.errors import InputError
 from ibr.export import export_colmap, export_mesh
 from ibr.scene import SceneError, load_scene
 from robot.protocol import Photo, forward_camera_mount, robot_camera
-from robot.session import CaptureSession
+from robot.session import CaptureSession, load_session_scene
 
 SIZE = (160, 120)
 
@@ -72,9 +72,7 @@ def test_session_with_model_loads_the_model(session, tmp_path):
         s.write_model(moved[:-1], scene.mesh, scene.points, scene.point_colors)  # last photo not in the model
     loaded = load_scene(copy)
     assert loaded.meta["poses"] == "model"
-    from robot.session import load_session_scene  # the raw session: every photo at its logged pose
-
-    assert len(load_session_scene(copy)) == len(cams)
+    assert len(load_session_scene(copy)) == len(cams)  # the raw session: every photo at its logged pose
     assert [v.name for v in loaded] == [c.name for c in moved[:-1]]
     for v, c in zip(loaded, moved):
         np.testing.assert_allclose(v.camera.K, c.K, atol=1e-6)
