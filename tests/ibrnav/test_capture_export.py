@@ -189,3 +189,16 @@ def test_colmap_export_copies_jpeg_photos_unchanged(tmp_path):
     assert [v.name for v in back] == [v.name for v in scene]
     assert all(np.array_equal(a.image, b.image) for a, b in zip(back, scene))
     assert back.mesh is None and len(back.points) == 0  # no mesh, no points given: none written
+
+
+def test_export_refine_reports_how_far_the_poses_moved(session, tmp_path, ibrnav_command, capsys):
+    folder, cams = session
+    assert ibrnav_command("export", folder, "--refine", "--colmap", tmp_path / "c") == 0
+    summary = json.loads(capsys.readouterr().out)
+    report = summary["refinement"]
+    assert summary["poses"] == "filter + refined" and report["cameras"] == len(cams)
+    exported = load_scene(tmp_path / "c")
+    moved = [np.linalg.norm(v.camera.center - c.center) for v, c in zip(exported, cams)]
+    assert max(moved) == pytest.approx(report["moved_m_max"], abs=1e-6)  # the export holds the refined poses
+    spacing = np.linalg.norm(cams[3].center - cams[0].center)
+    assert report["moved_m_max"] < 0.05 * spacing  # the logged poses were exact: little to move
