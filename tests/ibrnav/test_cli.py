@@ -85,6 +85,7 @@ def test_bench_knows_the_figures_of_every_package():
                                "explore.scenic.bench", "explore.vueplan.bench"]
     assert set(all_figures()) == {
         "mesh_views_per_s_64x48", "ulr_fps_640x480_10src", "particle_likelihoods_per_s_64x48", "pnp_s_per_query",
+        "pf_seconds_per_query",
         "heuristic_evals_per_s_100src_64x48", "heuristic_evals_per_s_100src_160x120", "astar_s_100x100",
         "astar_s_1000x1000", "scenic_nbv_poses_per_s", "vueplan_phase2_s_per_nbv", "vueplan_phase1_s_500"}
 
