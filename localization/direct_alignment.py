@@ -111,6 +111,20 @@ def se3_step(xi: np.ndarray) -> np.ndarray:
     return T
 
 
+def photometric_jacobian(camera: Camera, grad: tuple[np.ndarray, np.ndarray], u: np.ndarray,
+                         v: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """(P, 6) d I(pi(R(w) X + v)) / d (v, w) at xi = 0 for pixels (u, v) of depth z (camera-z,
+    metres): the photo's gradient grad = (dI/du, dI/dv) (h, w) times the projection's
+    Jacobian times [I, -[X]x]."""
+    K = camera.K
+    x = (u - K[0, 2]) / K[0, 0] * z
+    y = (v - K[1, 2]) / K[1, 1] * z
+    du = K[0, 0] * grad[0][v, u] / z  # dI / d(x, y, z) through the projection
+    dv = K[1, 1] * grad[1][v, u] / z
+    dz = -(du * x + dv * y) / z
+    return np.c_[du, dv, dz, dz * y - dv * z, du * z - dz * x, dv * x - du * y]
+
+
 def normal_equations(camera: Camera, observed: np.ndarray, grad: tuple[np.ndarray, np.ndarray],
                      r: np.ndarray, depth: np.ndarray, w: np.ndarray, tau: float,
                      lik: LikelihoodConfig, huber: float) -> tuple[np.ndarray, np.ndarray]:
@@ -118,15 +132,7 @@ def normal_equations(camera: Camera, observed: np.ndarray, grad: tuple[np.ndarra
     v, u = np.nonzero(w > 0)
     g, off, _ = robust_terms(r[v, u], observed[v, u], w[v, u], tau, lik.gain)[2]
     e = observed[v, u] - g * r[v, u] - off
-    z = depth[v, u].astype(float)
-    K = camera.K
-    x = (u - K[0, 2]) / K[0, 0] * z
-    y = (v - K[1, 2]) / K[1, 1] * z
-    gx, gy = grad[0][v, u], grad[1][v, u]
-    du = K[0, 0] * gx / z  # d I / d (x, y, z) through the projection
-    dv = K[1, 1] * gy / z
-    dz = -(du * x + dv * y) / z
-    J = np.c_[du, dv, dz, dz * y - dv * z, du * z - dz * x, dv * x - du * y]  # dI/dX [I, -[X]x]
+    J = photometric_jacobian(camera, grad, u, v, depth[v, u].astype(float))
     k = huber * tau
     weight = w[v, u] * np.where(np.abs(e) <= k, 1.0, k / np.maximum(np.abs(e), 1e-12))
     return (J * weight[:, None]).T @ J, (J * weight[:, None]).T @ e

@@ -1,5 +1,6 @@
-"""6-DoF particle filter and the hybrid on a synthetic scene whose answer is known: the
-office's photos are rendered from its mesh, so the rendered likelihood's optimum is the truth."""
+"""The rendered-view localiser (6-DoF particle filter, Gauss-Newton, verdict) and the hybrid on
+a synthetic scene whose answer is known: the office's photos are rendered from its mesh, so
+the rendered likelihood's optimum is the truth."""
 
 import numpy as np
 import pytest
@@ -7,14 +8,16 @@ from scipy.spatial.transform import Rotation
 
 from ibr.scene import load_scene
 from localization.eval import draw_prior
+from localization.render_localizer import RenderLocalizerConfig
 from localization.localize import LocConfig, SceneLocalizer
 from localization.feature_localizer import PnPResult, pose_errors
 from localization.hybrid import HybridConfig, localize_hybrid
-from localization.pose6_filter import (Pose6Filter, Pose6FilterConfig, PriorBox, annealing_temperature, apply_offsets,
+from localization.pose6_filter import (Pose6FilterConfig, PriorBox, annealing_temperature, apply_offsets,
                                        cam_from_world_of, diffuse, particles_from_cam_from_world, pose_covariance,
                                        sample_around, weighted_pose)
 
-SMALL = Pose6FilterConfig(n_particles=150, n_initial=300, steps=20, sizes=((40, 30), (80, 60)))
+SMALL = RenderLocalizerConfig(filter=Pose6FilterConfig(n_particles=100, n_initial=400, steps=6),
+                              modes=4, reference_views=4)
 
 
 @pytest.fixture(scope="module")
@@ -40,23 +43,35 @@ def test_weighted_pose_averages_rotations_on_the_sphere():
 @pytest.fixture(scope="module")
 def pf_setup(office_scene, gl_ctx):
     held = office_scene.views[3]
-    loc = SceneLocalizer(office_scene.without(held.name), "pf", LocConfig(filter=SMALL, model="mesh"), ctx=gl_ctx)
-    return held, loc
+    loc = SceneLocalizer(office_scene.without(held.name), "pf", LocConfig(render=SMALL, model="mesh"), ctx=gl_ctx)
+    yield held, loc
+    loc.release()
 
 
-def synthetic_pnp(held, renderer, rng, offset_m=0.005) -> PnPResult:
-    """A PnP result with a known answer: 300 pixels of the view, their true world points
-    (rendered G-buffer), 0.5 px noise, and a pose `offset_m` off the truth."""
+def synthetic_pnp(held, renderer, rng, offset_m: float, inliers: int) -> PnPResult:
+    """A PnP result with a known answer: pixels of the view and their true world points
+    (rendered G-buffer), 0.5 px noise, a pose `offset_m` off the truth, `inliers` of 300
+    matches."""
     g = renderer.render(held.camera)
     v, u = np.nonzero(g.mask)
-    pick = rng.choice(len(u), 300, replace=False)
-    uv = np.c_[u[pick], v[pick]] + rng.normal(scale=0.5, size=(300, 2))
+    pick = rng.choice(len(u), inliers, replace=False)
+    uv = np.c_[u[pick], v[pick]] + rng.normal(scale=0.5, size=(inliers, 2))
     T = held.camera.cam_from_world.copy()
     T[:3, 3] += [offset_m, 0, 0]
-    return PnPResult(T, 300, 300, held.camera.with_pose(T), uv, g.world[v[pick], u[pick]].astype(float))
+    return PnPResult(T, 300, inliers, held.camera.with_pose(T), uv, g.world[v[pick], u[pick]].astype(float))
 
 
-def test_pf_converges_to_the_true_pose(pf_setup):
+class FixedPnP:
+    """A feature map whose PnP always returns the given result."""
+
+    def __init__(self, result):
+        self.result = result
+
+    def localize(self, image, camera):
+        return self.result
+
+
+def test_pf_converges_to_the_true_pose_and_says_so(pf_setup):
     held, loc = pf_setup
     rng = np.random.default_rng(1)
     truth = held.camera.cam_from_world
@@ -64,22 +79,37 @@ def test_pf_converges_to_the_true_pose(pf_setup):
     start = pose_errors(prior, truth)
     res = loc.localize(held.image, held.camera, prior, 0.3, 10.0, rng)
     pos, rot = pose_errors(res.cam_from_world, truth)
-    assert start[0] > 0.15 and start[1] > 4.0  # the prior is well off
-    # the rendered likelihood at 80x60 pins the pose to a few cm
-    assert pos < 0.10 and rot < 2.0, (start, pos, rot)
+    assert start[0] > 0.1 and start[1] > 3.0  # the prior is well off
+    assert pos < 0.01 and rot < 0.2, (start, pos, rot)  # Gauss-Newton pins it
+    assert res.localized and res.verdict.confidence > 0.9, res.verdict
 
 
-def test_hybrid_with_a_pnp_proposal_converges_from_a_wrong_prior(pf_setup):
+def test_a_blank_photo_and_a_photo_of_another_place_are_not_localised(pf_setup, gl_ctx):
+    held, loc = pf_setup
+    rng = np.random.default_rng(3)
+    truth = held.camera.cam_from_world
+    blank = np.full_like(held.image, 128)
+    elsewhere = load_scene("synthetic:courtyard?views=4&width=320&height=240").views[1].image
+    for image in (blank, elsewhere):
+        res = loc.localize(image, held.camera, draw_prior(truth, 0.3, 10.0, rng), 0.3, 10.0, rng)
+        assert not res.localized and res.verdict.reason, res.verdict
+
+
+def test_hybrid_keeps_a_strong_pnp_pose_and_arbitrates_a_weak_one(pf_setup):
     held, loc = pf_setup
     rng = np.random.default_rng(2)
     truth = held.camera.cam_from_world
-    pnp = synthetic_pnp(held, loc.likelihood.model, rng)
-    prior = draw_prior(truth, 1.0, 30.0, rng)
-    particles = sample_around(prior, SMALL.n_particles, 1.0, np.radians(30), rng)
-    pf = Pose6Filter(loc.likelihood, SMALL, rng)
-    res = localize_hybrid(pf, None, held.image, held.camera, particles, HybridConfig(), pnp=pnp)
-    pos, rot = pose_errors(res.estimate.cam_from_world, truth)
-    assert pos < 0.02 and rot < 0.5, (pose_errors(prior, truth), pos, rot)
+    renderer = loc.model.fine.renderer
+    particles = sample_around(draw_prior(truth, 0.3, 10.0, rng), 400, 0.3, np.radians(10), rng)
+    spread = (0.3, np.radians(10))
+    strong = synthetic_pnp(held, renderer, rng, 0.004, 200)
+    res = localize_hybrid(loc.model, FixedPnP(strong), held.image, held.camera, particles, spread, rng)
+    assert res.source == "pnp" and res.verdict.localized
+    np.testing.assert_array_equal(res.cam_from_world, strong.cam_from_world)  # not dragged away
+    weak = synthetic_pnp(held, renderer, rng, 0.03, 15)
+    res = localize_hybrid(loc.model, FixedPnP(weak), held.image, held.camera, particles, spread, rng)
+    assert res.source == "render" and res.verdict.localized
+    assert pose_errors(res.cam_from_world, truth)[0] < 0.01  # the rendered alignment fixed it
 
 
 def test_annealing_temperature_keeps_the_asked_share_of_effective_particles():
@@ -110,8 +140,9 @@ def test_diffusion_follows_the_particles_covariance():
 
 @pytest.mark.realdata
 def test_pf_localises_a_held_out_fountain_photo_from_a_1m_30deg_prior(strecha_dir):
-    """The render-only filter (photo-textured proxy, eval-loc's settings) on fountain-P11
-    with 0005 held out, from a prior drawn +-1 m / +-30 deg around the truth: under 5 cm / 5 deg."""
+    """The rendered-view localiser (photo-textured proxy with trust, eval-loc's settings) on
+    fountain-P11 with 0005 held out, from a prior drawn +-1 m / +-30 deg around the truth:
+    under 5 cm / 5 deg, and it says it localised."""
     scene = load_scene(strecha_dir / "fountain-P11")
     held = scene.view("0005.jpg")
     loc = SceneLocalizer(scene.without(held.name), "pf")
@@ -122,6 +153,8 @@ def test_pf_localises_a_held_out_fountain_photo_from_a_1m_30deg_prior(strecha_di
     pos, rot = pose_errors(res.cam_from_world, truth)
     assert pose_errors(prior, truth)[0] > 0.3
     assert pos < 0.05 and rot < 5.0, (pose_errors(prior, truth), pos, rot)
+    assert res.localized, res.verdict
+    loc.release()
 
 
 def test_prior_box_contains_exactly_what_sample_around_draws():
