@@ -29,8 +29,10 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     spec = parse_scene_spec(args.scene, synthetic_only=True, allowed=("seed",))
     world = make_world(spec.world, spec.seed(args.seed))
-    route_start = loop_route(world)[0] if world.name == "office" else np.array(world.free_space.centroid.coords[0])
-    start = np.array([*route_start, START_HEADING])
+    if world.name == "office":
+        start = np.array([*loop_route(world)[0], START_HEADING])
+    else:
+        start = world.start_pose(np.random.default_rng(args.seed))
     robot = SimRobot(world, rng=np.random.default_rng(args.seed), start_pose=start)
     log = recording.recording_requested(args)  # record only when asked
     if log:

@@ -2,7 +2,9 @@
 
 From the map of the photos so far (`robot.mission.map_building`), each round:
 1. slices the mesh at the camera height for the free-space boundary and samples random
-   candidate poses inside it (`explore.candidates`);
+   candidate poses inside it (`explore.candidates`), keeping those some photo saw through
+   (`ViewQuality.seen_free`: not behind a wall of the map nor inside furniture), that the
+   robot can reach on the navigation grid, and not near a goal given up before;
 2. scores all candidates in one batched pass of the rendering-quality heuristic
    (`explore.view_quality.ViewQuality`: mean smallest angle between a pixel's desired ray
    and the rays to the source photos that see its point; higher = more to gain);
@@ -26,15 +28,16 @@ Algorithm code only: what happens is reported to a `MissionObserver`
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from explore.candidates import free_space_from_mesh, sample_candidates
-from explore.nav_grid import NavGridConfig, nav_grid_from_points
+from explore.nav_grid import NavGridConfig, nav_grid_from_points, reachable_at, reachable_mask
 from explore.path_simplify import plan_path
 from explore.view_quality import ViewQuality, ViewQualityConfig
 from ibr.camera import Camera
+from ibr.errors import InputError
 from ibr.proxy.triangulation import TriangulationConfig, sift_features
 from localization.feature_localizer import FeatureLocalizerConfig, FeatureMap
 from localization.motion_models import wrap_angle
@@ -65,6 +68,10 @@ class AdaptiveConfig:
     """Stop when the best candidate's score (mean angle, rad) is below this."""
     max_rounds: int = 6
     """Most rounds of goal selection and map rebuilding."""
+    step_limit_s: float | None = 600.0
+    """A step of a round (choosing goals, driving to one goal and photographing it,
+    rebuilding the map) that takes longer than this (s) is an error (`robot.mission.watchdog`),
+    never a silent stall. Generous: a step takes seconds to a minute on a busy 2-core machine."""
     switch_m: float = 0.3
     """Target-node switching: a path node within this distance counts as passed (m)."""
     reach_m: float = 0.15
@@ -81,6 +88,9 @@ class AdaptiveConfig:
     """Legs after which a goal is given up (a planner or localisation fault never loops forever)."""
     max_path_cost: float = 0.35
     """Grid cells with a (normalised) KDE cost above this are blocked for A*."""
+    grid_seen_margin_m: float = 0.15
+    """A grid cell no photo saw through by this margin (m, `ViewQuality.seen_free`) costs
+    at least `max_path_cost`: passable, but paths keep to the space the photos saw empty."""
     max_fix_jump_m: float = 1.0
     """A PnP fix farther than this from the dead-reckoning estimate is rejected (m)."""
     max_fix_height_err_m: float = 0.15
@@ -126,6 +136,10 @@ class AdaptiveMission:
         self._features: dict[int, object] = {}
         self.fixes = self.failed = self.given_up = 0
         self.goals_reached: list[np.ndarray] = []
+        self.given_up_goals: list[np.ndarray] = []
+        """Goals given up: no candidate is drawn near them again."""
+        self._seen_free = None  # the last scorer's `ViewQuality.seen_free` (its sources' depth maps)
+        self.give_up_reason = ""
         self.tracks = stereo_tracks(self._model_cameras(), self._feats, config.localizer.triangulation)
         self.fmap = self._feature_map()
 
@@ -198,27 +212,70 @@ class AdaptiveMission:
 
     # --- goals ----------------------------------------------------------------------------
     def choose_goals(self) -> tuple[np.ndarray, float, object]:
-        """(goals (G, 3) best first, best score, free space) of this round."""
+        """(goals (G, 3) best first, best score, navigation grid) of this round. Candidates
+        are drawn in the free space of the mesh slice (`explore.candidates`) and kept only
+        where (a) some photo saw through them (`ViewQuality.seen_free`: not behind a wall of
+        the map nor inside furniture), (b) the robot can drive to on this round's grid (the
+        component of its cell that A* can search, `explore.nav_grid.reachable_mask`), and
+        (c) not near a goal given up before (`given_up_goals`). No candidate left: no goal,
+        best score 0 (the mission stops: "no reachable goal")."""
         c = self.config
         cams = [p.camera for p in self.photos if p.camera is not None and p.stage != "localise"]
         xy = np.array([cam.center[:2] for cam in cams])
         free = free_space_from_mesh(self.map.mesh, self.cam_height, xy)
-        cand = sample_candidates(free, c.n_candidates, self.rng, c.clearance_m)
         vq = ViewQuality(self.map.mesh, cams, config=c.view_quality)
         try:
-            scores = vq.score_poses(cand, self.template, self.robot.cam_from_robot)
+            self._seen_free = vq.seen_free  # numpy only: still usable after release()
+            grid = self.nav_grid(free)
+            cand = self._candidates(free, grid)
+            if len(cand) == 0:
+                self.obs.map(self.map, free)
+                return np.zeros((0, 3)), 0.0, grid
+            clip, eyes = vq.pose_views(cand, self.template, self.robot.cam_from_robot)
+            seen = vq.seen_free(eyes, c.clearance_m)  # not behind the map's walls, nor in furniture
+            cand = cand[seen]
+            scores = vq.score_views(clip[seen], eyes[seen]) if len(cand) else np.zeros(0)
         finally:
             vq.release()
         pick = pick_goals(cand, scores, c.goals_per_round, c.goal_separation_m)
         self.obs.map(self.map, free)
         self.obs.candidates(cand, scores, cand[pick])
-        return cand[pick], float(scores.max(initial=0.0)), free
+        return cand[pick], float(scores.max(initial=0.0)), grid
+
+    def _candidates(self, free, grid) -> np.ndarray:
+        """(N, 3) candidate poses in `free` (eroded by `clearance_m`) that the robot can reach
+        on `grid` and that are not within `goal_separation_m` of a given-up goal."""
+        c = self.config
+        try:
+            cand = sample_candidates(free, c.n_candidates, self.rng, c.clearance_m)
+        except InputError:  # the free space has no room left after the clearance
+            return np.zeros((0, 3))
+        mask = reachable_mask(grid, self.body.est.pose[:2], c.max_path_cost)
+        keep = reachable_at(grid, mask, cand[:, :2])
+        if self.given_up_goals:
+            bad = np.array(self.given_up_goals)[:, :2]
+            d = np.linalg.norm(cand[:, None, :2] - bad[None], axis=2)
+            keep &= d.min(axis=1) >= c.goal_separation_m
+        return cand[keep]
 
     def nav_grid(self, free):
+        """The KDE grid over the photos' positions and the free space; cells no photo saw
+        through (a table with few points, space behind a wall) cost at least
+        `max_path_cost`: passable, but paths keep to the space the photos saw empty. The
+        filter's box prior is grown to cover it."""
         cams = np.array([p.estimate[:2] for p in self.photos])
         lo = np.minimum(cams.min(0), np.asarray(free.bounds[:2])) - 0.5
         hi = np.maximum(cams.max(0), np.asarray(free.bounds[2:])) + 0.5
         grid = nav_grid_from_points(self.map.points, (*lo, *hi), self.config.grid)
+        if isinstance(self.body, FilteredBody):
+            self.body.est.grow_prior(np.array([lo, hi]))
+        seen = self._seen_free
+        if seen is not None:
+            H, W = grid.shape
+            xy = grid.cell_to_world(np.indices((H, W)).reshape(2, -1).T)
+            free_cells = seen(np.c_[xy, np.full(len(xy), self.cam_height)], self.config.grid_seen_margin_m)
+            grid = replace(grid, cost=np.where(free_cells.reshape(H, W), grid.cost,
+                                               np.maximum(grid.cost, self.config.max_path_cost)))
         self.obs.grid(grid)
         return grid
 
@@ -239,12 +296,15 @@ class AdaptiveMission:
         self.body.move(drive=c.off_path_m)
 
     def go_to(self, goal: np.ndarray, grid) -> bool:
-        """Drive to goal (3,) on the plan; True when reached."""
+        """Drive to goal (3,) on the plan; True when reached. Why a goal was given up is
+        left in `self.give_up_reason` ("no path", "obstacles", "legs")."""
         c = self.config
         obstacles, legs = 0, 0
+        self.give_up_reason = ""
         while obstacles <= c.max_obstacles and legs < c.max_legs_per_goal:
             path = plan_path(grid, self.body.est.pose[:2], goal[:2], max_cost=c.max_path_cost)
             if path is None:
+                self.give_up_reason = "no path"
                 return False
             self.obs.path(path)
             t, blocked = 1, False
@@ -271,8 +331,10 @@ class AdaptiveMission:
                 if isinstance(self.body, FilteredBody) and self.body.est.needs_fix():
                     self.take_photo("localise")  # the filter's spread grew: look before going on
             if not blocked:
+                self.give_up_reason = "" if legs < c.max_legs_per_goal else "legs"
                 return legs < c.max_legs_per_goal
             self.take_photo("localise")
+        self.give_up_reason = "obstacles" if obstacles > c.max_obstacles else "legs"
         return False
 
     def _face(self, heading: float) -> None:
