@@ -17,7 +17,8 @@ From the map of the photos so far (`robot.mission.map_building`), each round:
    (SIFT + RANSAC PnP against the map, `localization.feature_localizer`, as a mixture
    proposal), and an extra photo when the filter's spread grows too large: the plan
    consumes the filter's estimate, never a simulator's truth. On an obstacle it
-   backs off, drives a little off the path and re-plans; after `max_obstacles` obstacles it
+   marks the contact point blocked on the grid (for this and every later plan), backs off,
+   drives a little off the path and re-plans; after `max_obstacles` obstacles it
    gives the goal up and takes the next;
 5. photographs at each goal, localises those photos, and rebuilds the map with them
    (triangulation with the localised poses fixed, Poisson mesh).
@@ -80,6 +81,9 @@ class AdaptiveConfig:
     """Longest straight drive on dead reckoning before re-aiming (m)."""
     max_obstacles: int = 5
     """Obstacles on the way to a goal after which it is given up (the paper's k = 5)."""
+    robot_radius_m: float = 0.15
+    """The robot's footprint radius (m, the robot's own size): a bump blocks the grid cells
+    within this of the contact point (the robot's centre cannot go there)."""
     backoff_m: float = 0.2
     """How far to back up from an obstacle (m)."""
     off_path_m: float = 0.3
@@ -138,6 +142,8 @@ class AdaptiveMission:
         self.goals_reached: list[np.ndarray] = []
         self.given_up_goals: list[np.ndarray] = []
         """Goals given up: no candidate is drawn near them again."""
+        self.bumps: list[np.ndarray] = []
+        """Where the bumpers touched something (world xy, m, on the estimate): blocked in every grid."""
         self._seen_free = None  # the last scorer's `ViewQuality.seen_free` (its sources' depth maps)
         self.give_up_reason = ""
         self.tracks = stereo_tracks(self._model_cameras(), self._feats, config.localizer.triangulation)
@@ -276,8 +282,27 @@ class AdaptiveMission:
             free_cells = seen(np.c_[xy, np.full(len(xy), self.cam_height)], self.config.grid_seen_margin_m)
             grid = replace(grid, cost=np.where(free_cells.reshape(H, W), grid.cost,
                                                np.maximum(grid.cost, self.config.max_path_cost)))
+        grid = self._with_bumps(grid, self.bumps)
         self.obs.grid(grid)
         return grid
+
+    def _with_bumps(self, grid, contacts: list[np.ndarray]):
+        """`grid` with the cells within `robot_radius_m` of each contact point (2,) blocked."""
+        if not contacts:
+            return grid
+        H, W = grid.shape
+        xy = grid.cell_to_world(np.indices((H, W)).reshape(2, -1).T)
+        d = np.linalg.norm(xy[:, None] - np.asarray(contacts)[None], axis=2).min(axis=1)
+        return replace(grid, cost=np.where(d.reshape(H, W) < self.config.robot_radius_m, np.inf, grid.cost))
+
+    def _bumped(self, motion, grid):
+        """Remember where the bumper touched (the robot's edge ahead of, or behind, the
+        estimate) and return the grid with it blocked, so the re-plan goes around it."""
+        est = self.body.est.pose
+        ahead = -1.0 if motion.bumper_rear else 1.0
+        contact = est[:2] + ahead * self.config.robot_radius_m * np.array([np.cos(est[2]), np.sin(est[2])])
+        self.bumps.append(contact)
+        return self._with_bumps(grid, [contact])
 
     # --- path following -----------------------------------------------------------------------
     def _aim_and_drive(self, target: np.ndarray):
@@ -301,6 +326,7 @@ class AdaptiveMission:
         c = self.config
         obstacles, legs = 0, 0
         self.give_up_reason = ""
+        grid = self._with_bumps(grid, self.bumps)  # the obstacles found since the grid was built
         while obstacles <= c.max_obstacles and legs < c.max_legs_per_goal:
             path = plan_path(grid, self.body.est.pose[:2], goal[:2], max_cost=c.max_path_cost)
             if path is None:
@@ -324,6 +350,7 @@ class AdaptiveMission:
                 legs += 1
                 if motion.blocked:
                     obstacles += 1
+                    grid = self._bumped(motion, grid)
                     self._recover(motion)
                     blocked = True
                     break

@@ -116,6 +116,7 @@ def _resume_adaptive(robot: Robot, state: dict, config: AdaptiveConfig, rng: np.
     mission.fixes, mission.failed, mission.given_up = state["fixes"], state["failed"], state["given_up"]
     mission.goals_reached = [np.asarray(g, float) for g in state["goals"]]
     mission.given_up_goals = [np.asarray(g, float) for g in state.get("given_up_goals", [])]
+    mission.bumps = [np.asarray(b, float) for b in state.get("bumps", [])]
     result = MissionResult(photos, rmap, rounds=state["rounds"])
     log.info(f"resumed after adaptive round {state['rounds']}: {len(result.model_photos)} photos, "
                  f"{len(rmap.points)} map points")

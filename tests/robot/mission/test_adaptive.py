@@ -122,8 +122,13 @@ def test_gives_a_goal_up_after_k_obstacles(office, monkeypatch):
     monkeypatch.setattr(m, "config", replace(m.config, off_path_m=0.2, max_obstacles=5))
     goals, _, grid = m.choose_goals()
     far = goals[np.argmax(np.hypot(*(goals[:, :2] - m.body.est.pose[:2]).T))]
-    assert not m.go_to(far, grid) and m.give_up_reason == "obstacles"
-    assert len(drives) == 6  # k = 5 obstacles survived, the 6th gives up
+    try:
+        assert not m.go_to(far, grid) and m.give_up_reason == "obstacles"
+        assert len(drives) == 6  # k = 5 obstacles survived, the 6th gives up
+        # each contact was remembered and is blocked for every later plan
+        assert len(m.bumps) == 6 and np.isinf(m._with_bumps(grid, m.bumps).cost_at(np.array(m.bumps))).all()
+    finally:
+        m.bumps = []
 
 
 def fenced(m: AdaptiveMission, radius_m: float) -> AdaptiveMission:
