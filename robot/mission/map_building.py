@@ -6,8 +6,10 @@ Bundler plays in the paper), made fast for a robot: one shared, known pinhole ca
 refined), few SIFT features per small image, exhaustive matching of the (~100) photos.
 COLMAP's frame is arbitrary, so the model is aligned to the robot's floor frame: the camera
 centres' best-fit plane becomes the plane z = camera height (its normal along the cameras'
-up), then a 2-D similarity (Umeyama) takes the centres onto the dead-reckoning positions,
-which gives metric scale from the odometry and heading from the compass.
+up); the metric scale comes from the floor plane found in the SfM points, which lies the
+camera's (known) height below the cameras (`floor_alignment`; the 2-D similarity onto the
+dead-reckoning positions gives it only when no floor is found); a 2-D rigid fit onto the
+dead-reckoning positions of the whole random stage gives heading (compass) and position.
 
 `extend_map` adds photos whose poses were localised (PnP) later: their SIFT features are
 matched with their stereo partners (`stereo_tracks`) and triangulated with the poses *fixed*
@@ -22,6 +24,8 @@ import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import logging
+
 import cv2
 import numpy as np
 import trimesh
@@ -32,6 +36,9 @@ from ibr.proxy.normals import estimate_normals, remove_outliers
 from ibr.proxy.poisson import PoissonConfig, poisson_mesh
 from ibr.proxy.sfm import colmap_errors_only
 from ibr.proxy.triangulation import TriangulationConfig, pair_tracks
+
+
+log = logging.getLogger(__name__)
 
 
 class MapError(InputError):
@@ -170,11 +177,9 @@ def _umeyama_2d(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np
     return s, R, md - s * R @ ms
 
 
-def floor_alignment(centres: np.ndarray, ups: np.ndarray, target_xy: np.ndarray,
-                    camera_height_m: float) -> np.ndarray:
-    """4x4 similarity world_from_sfm taking SfM camera `centres` (N, 3) to the floor frame:
-    their best-fit plane to z = `camera_height_m` (normal along the mean camera `ups`), then
-    the 2-D similarity onto `target_xy` (N, 2), the dead-reckoning positions (metres)."""
+def _level(centres: np.ndarray, ups: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(c0, level): the camera centres' mean and the rotation (rows: new axes) that puts the
+    normal of their best-fit plane (oriented along the mean camera up) on +z."""
     c0 = centres.mean(0)
     _, _, Vt = np.linalg.svd(centres - c0)
     n = Vt[2] if np.linalg.matrix_rank(centres - c0, tol=1e-9) >= 2 else ups.mean(0)
@@ -182,13 +187,57 @@ def floor_alignment(centres: np.ndarray, ups: np.ndarray, target_xy: np.ndarray,
     n /= np.linalg.norm(n)
     x = np.cross([0, 1.0, 0], n) if abs(n[1]) < 0.9 else np.cross([1.0, 0, 0], n)
     x /= np.linalg.norm(x)
-    level = np.stack([x, np.cross(n, x), n])  # rows: new axes; level @ v puts n on +z
+    return c0, np.stack([x, np.cross(n, x), n])
+
+
+def floor_depth(heights: np.ndarray, bin_share: float = 0.01, min_points: int = 30) -> tuple[float, int] | None:
+    """(depth, support): how far below the cameras the floor lies, in the map's units, and
+    how many points support it, from the heights (N,) of the map's points above the cameras'
+    plane (negative below). The floor is the densest horizontal layer below the cameras: a
+    histogram of the depths in bins of `bin_share` of their 95th percentile (a share: no unit),
+    its fullest bin, refined to the median depth of the points within 1.5 bins of it. Walls
+    spread their points over every height, a table's top is small, so the floor's spike wins.
+    None when fewer than `min_points` points lie below the cameras or the spike holds fewer."""
+    depth = -np.asarray(heights, float)
+    depth = depth[np.isfinite(depth) & (depth > 0)]
+    if len(depth) < min_points:
+        return None
+    top = float(np.percentile(depth, 95)) * 1.2
+    width = bin_share * top
+    counts, edges = np.histogram(depth, bins=max(int(np.ceil(top / width)), 1), range=(0.0, top))
+    peak = 0.5 * (edges[np.argmax(counts)] + edges[np.argmax(counts) + 1])
+    near = depth[np.abs(depth - peak) <= 1.5 * width]
+    if len(near) < min_points:
+        return None
+    return float(np.median(near)), int(len(near))
+
+
+def floor_alignment(centres: np.ndarray, ups: np.ndarray, target_xy: np.ndarray,
+                    camera_height_m: float, points: np.ndarray | None = None) -> tuple[np.ndarray, str]:
+    """(world_from_sfm 4x4 similarity, how the scale was found) taking SfM camera `centres`
+    (N, 3) to the floor frame. Level: the centres' best-fit plane becomes z =
+    `camera_height_m` (normal along the mean camera `ups`). Scale, from what the robot knows:
+    - "floor": the floor plane in the SfM `points` (M, 3) (`floor_depth`) lies the camera's
+      height below the cameras, so s = camera_height_m / depth (independent of odometry);
+    - "odometry": no floor found (or no points): the 2-D similarity (Umeyama) onto
+      `target_xy` (N, 2), the dead-reckoning positions over the whole random stage (metres).
+    Heading and position: the 2-D rigid fit (scale fixed) onto `target_xy` (compass-aided
+    dead reckoning from the known start)."""
+    c0, level = _level(centres, ups)
     p = (centres - c0) @ level.T
+    floor = None
+    if points is not None and len(points):
+        floor = floor_depth(((np.asarray(points, float) - c0) @ level.T)[:, 2])
     s, R, t = _umeyama_2d(p[:, :2], target_xy)
+    how = "odometry"
+    if floor is not None:
+        s, how = camera_height_m / floor[0], "floor"
+        _, R, _ = _umeyama_2d(p[:, :2], target_xy)  # the rotation does not depend on the scale
+        t = target_xy.mean(0) - s * R @ p[:, :2].mean(0)
     S = np.eye(4)
     S[:2, :2], S[:2, 3], S[2, 2], S[2, 3] = s * R, t, s, camera_height_m
     L = rigid(level, -level @ c0)
-    return S @ L
+    return S @ L, how
 
 
 def _transform_camera(cam: Camera, world_from_sfm: np.ndarray) -> Camera:
@@ -220,7 +269,10 @@ def initial_map(images: list[np.ndarray], K: np.ndarray, estimates: np.ndarray, 
         centres = np.array([cams[i].center for i in idx])
         ups = np.array([-cams[i].world_from_cam[:3, 1] for i in idx])
         cam_xy = np.array([_camera_xy(e, cam_from_robot) for e in np.asarray(estimates)[idx]])
-        world_from_sfm = floor_alignment(centres, ups, cam_xy, float(np.linalg.inv(cam_from_robot)[2, 3]))
+        sfm_points = np.array([p.xyz for p in rec.points3D.values()]).reshape(-1, 3)
+        world_from_sfm, how = floor_alignment(centres, ups, cam_xy, float(np.linalg.inv(cam_from_robot)[2, 3]),
+                                              sfm_points)
+        log.info(f"initial map: metric scale from the {'floor plane and the camera height' if how == 'floor' else 'odometry (no floor plane found)'}")
         h, w = images[0].shape[:2]  # COLMAP's K has the half-pixel offset: keep the known K
         cameras = {i: Camera(K, w, h, _transform_camera(cams[i], world_from_sfm).cam_from_world,
                              f"photo_{i:05d}") for i in idx}
