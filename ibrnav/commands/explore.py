@@ -51,8 +51,9 @@ def run(args: argparse.Namespace) -> int:
               "photos": len(result.model_photos), "localisation_photos": len(result.photos) - len(result.model_photos),
               "path_length_m": result.path_m, "coverage_curve": [list(p) for p in obs.coverage_curve],
               "rounds": result.rounds, "goals_reached": len(result.goals), "goals_given_up": result.given_up,
-              "pnp_fixes": result.fixes, "pnp_failures": result.failed_fixes, "stop_reason": result.stop_reason,
-              "localisation_error_m": obs.error_summary(),
+              "pnp_fixes": result.fixes, "pnp_failures": result.failed_fixes,
+              "stopped_because": result.stopped_because, "stop_reason": result.stop_reason,
+              **_truth_report(world, robot, result), "position_errors": obs.error_summary(),
               "seconds": time.perf_counter() - t0}
     if args.json:
         Path(args.json).write_text(json.dumps(report, indent=1))
@@ -61,10 +62,25 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _truth_report(world, robot, result) -> dict:
+    """The mission against the simulator's truth (`robot.mission.evaluation`)."""
+    from robot.mission.evaluation import localisation_errors, map_scale_error, rooms_visited, true_poses
+
+    truth = true_poses(robot.truth)
+    loc = localisation_errors(result.photos, truth)
+    visited, rooms = rooms_visited(world, result.model_photos, truth)
+    return {"localization_error_m": None if loc is None else {k: loc[k] for k in ("median", "p95", "max", "photos")},
+            "heading_error_deg": None if loc is None else {"median": loc["heading_median_deg"],
+                                                           "p95": loc["heading_p95_deg"]},
+            "map_scale_error": map_scale_error(result.robot_map, truth, robot.cam_from_robot, result.photos),
+            "rooms_visited": visited, "rooms": rooms}
+
+
 def register(subparsers) -> None:
     e = subparsers.add_parser("explore", help="run a capture strategy in a synthetic scene with a photo "
                               "budget and report surface coverage")
-    e.add_argument("scene", help="synthetic:NAME[?seed=N] (office or courtyard; the world seed defaults to --seed)")
+    e.add_argument("scene", help="synthetic:NAME[?seed=N] (office, apartment or courtyard; the world seed defaults "
+                   "to --seed)")
     e.add_argument("--strategy", choices=("adaptive", "random"), default="adaptive")
     add_mission_args(e, 136)
     e.add_argument("--json", default=None, help="write the report here")

@@ -256,7 +256,7 @@ class AdaptiveMission:
             cand = sample_candidates(free, c.n_candidates, self.rng, c.clearance_m)
         except InputError:  # the free space has no room left after the clearance
             return np.zeros((0, 3))
-        mask = reachable_mask(grid, self.body.est.pose[:2], c.max_path_cost)
+        mask = reachable_mask(self._from_here(grid), self.body.est.pose[:2], c.max_path_cost)
         keep = reachable_at(grid, mask, cand[:, :2])
         if self.given_up_goals:
             bad = np.array(self.given_up_goals)[:, :2]
@@ -295,6 +295,15 @@ class AdaptiveMission:
         d = np.linalg.norm(xy[:, None] - np.asarray(contacts)[None], axis=2).min(axis=1)
         return replace(grid, cost=np.where(d.reshape(H, W) < self.config.robot_radius_m, np.inf, grid.cost))
 
+    def _from_here(self, grid):
+        """`grid` with the cells within `robot_radius_m` of the estimate passable (at most
+        `max_path_cost`): the robot stands there, whatever the bumps or the map say, so A*
+        and the reachable set start from the same free cells."""
+        H, W = grid.shape
+        xy = grid.cell_to_world(np.indices((H, W)).reshape(2, -1).T)
+        here = (np.linalg.norm(xy - self.body.est.pose[:2], axis=1) < self.config.robot_radius_m).reshape(H, W)
+        return replace(grid, cost=np.where(here, np.minimum(grid.cost, self.config.max_path_cost), grid.cost))
+
     def _bumped(self, motion, grid):
         """Remember where the bumper touched (the robot's edge ahead of, or behind, the
         estimate) and return the grid with it blocked, so the re-plan goes around it."""
@@ -328,7 +337,7 @@ class AdaptiveMission:
         self.give_up_reason = ""
         grid = self._with_bumps(grid, self.bumps)  # the obstacles found since the grid was built
         while obstacles <= c.max_obstacles and legs < c.max_legs_per_goal:
-            path = plan_path(grid, self.body.est.pose[:2], goal[:2], max_cost=c.max_path_cost)
+            path = plan_path(self._from_here(grid), self.body.est.pose[:2], goal[:2], max_cost=c.max_path_cost)
             if path is None:
                 self.give_up_reason = "no path"
                 return False

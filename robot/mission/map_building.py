@@ -166,7 +166,7 @@ def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, confi
     return rec
 
 
-def _umeyama_2d(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+def umeyama_2d(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
     """Similarity (s, R 2x2, t) minimising |dst - (s R src + t)|^2 for (N, 2) point sets."""
     ms, md = src.mean(0), dst.mean(0)
     a, b = src - ms, dst - md
@@ -228,11 +228,11 @@ def floor_alignment(centres: np.ndarray, ups: np.ndarray, target_xy: np.ndarray,
     floor = None
     if points is not None and len(points):
         floor = floor_depth(((np.asarray(points, float) - c0) @ level.T)[:, 2])
-    s, R, t = _umeyama_2d(p[:, :2], target_xy)
+    s, R, t = umeyama_2d(p[:, :2], target_xy)
     how = "odometry"
     if floor is not None:
         s, how = camera_height_m / floor[0], "floor"
-        _, R, _ = _umeyama_2d(p[:, :2], target_xy)  # the rotation does not depend on the scale
+        _, R, _ = umeyama_2d(p[:, :2], target_xy)  # the rotation does not depend on the scale
         t = target_xy.mean(0) - s * R @ p[:, :2].mean(0)
     S = np.eye(4)
     S[:2, :2], S[:2, 3], S[2, 2], S[2, 3] = s * R, t, s, camera_height_m
