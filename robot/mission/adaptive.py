@@ -93,8 +93,8 @@ class AdaptiveConfig:
     max_path_cost: float = 0.35
     """Grid cells with a (normalised) KDE cost above this are blocked for A*."""
     grid_seen_margin_m: float = 0.15
-    """A grid cell no photo saw through by this margin (m, `ViewQuality.seen_free`) costs
-    at least `max_path_cost`: passable, but paths keep to the space the photos saw empty."""
+    """A grid cell no photo saw through by this margin (m, `ViewQuality.seen_free`) is
+    blocked: paths keep to the space the photos saw empty."""
     max_fix_jump_m: float = 1.0
     """A PnP fix farther than this from the dead-reckoning estimate is rejected (m)."""
     max_fix_height_err_m: float = 0.15
@@ -266,9 +266,9 @@ class AdaptiveMission:
 
     def nav_grid(self, free):
         """The KDE grid over the photos' positions and the free space; cells no photo saw
-        through (a table with few points, space behind a wall) cost at least
-        `max_path_cost`: passable, but paths keep to the space the photos saw empty. The
-        filter's box prior is grown to cover it."""
+        through (a table with few points, space behind a wall or a plain wall SfM found no
+        point on) are blocked: the robot drives only where its photos saw empty space (and
+        where it stands, `_from_here`). The filter's box prior is grown to cover it."""
         cams = np.array([p.estimate[:2] for p in self.photos])
         lo = np.minimum(cams.min(0), np.asarray(free.bounds[:2])) - 0.5
         hi = np.maximum(cams.max(0), np.asarray(free.bounds[2:])) + 0.5
@@ -280,8 +280,7 @@ class AdaptiveMission:
             H, W = grid.shape
             xy = grid.cell_to_world(np.indices((H, W)).reshape(2, -1).T)
             free_cells = seen(np.c_[xy, np.full(len(xy), self.cam_height)], self.config.grid_seen_margin_m)
-            grid = replace(grid, cost=np.where(free_cells.reshape(H, W), grid.cost,
-                                               np.maximum(grid.cost, self.config.max_path_cost)))
+            grid = replace(grid, cost=np.where(free_cells.reshape(H, W), grid.cost, np.inf))
         grid = self._with_bumps(grid, self.bumps)
         self.obs.grid(grid)
         return grid

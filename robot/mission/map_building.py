@@ -121,7 +121,8 @@ def heading_pairs(headings: np.ndarray, max_diff_rad: float) -> np.ndarray:
 def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, config: MapConfig, work: Path):
     """pycolmap incremental SfM of `images` (H, W, 3) uint8 with the known shared `K`, matching
     only the photos whose compass `headings` (rad) are within `config.match_heading_rad`.
-    Returns the largest reconstruction."""
+    Returns every reconstruction, largest first (photos that share no features, e.g. in two
+    rooms, make separate models; `initial_map` puts each in metres on its own)."""
     import pycolmap
 
     img_dir = work / "images"
@@ -152,18 +153,18 @@ def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, confi
     opts.num_threads, opts.random_seed = config.threads, config.seed
     opts.mapper.num_threads, opts.mapper.random_seed = config.threads, config.seed
     opts.ba_refine_focal_length = opts.ba_refine_principal_point = opts.ba_refine_extra_params = False
-    opts.multiple_models = False
+    opts.multiple_models = True  # photos in different rooms often form separate models
     opts.ba_global_frames_ratio = opts.ba_global_points_ratio = 1.4  # fewer global BAs: ~100 photos
     opts.ba_global_max_num_iterations, opts.ba_local_max_num_iterations = 30, 15
     with colmap_errors_only():
         maps = pycolmap.incremental_mapping(db, img_dir, work / "sparse", opts)
     if not maps:
         raise MapError(f"SfM registered none of the {len(images)} photos (too little texture or overlap?)")
-    rec = max(maps.values(), key=lambda r: r.num_reg_images())
-    if rec.num_reg_images() < config.min_registered:
-        raise MapError(f"SfM registered only {rec.num_reg_images()} of {len(images)} photos; "
+    recs = sorted(maps.values(), key=lambda r: -r.num_reg_images())
+    if recs[0].num_reg_images() < config.min_registered:
+        raise MapError(f"SfM registered only {recs[0].num_reg_images()} of {len(images)} photos; "
                        f"need {config.min_registered}")
-    return rec
+    return recs
 
 
 def umeyama_2d(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -190,7 +191,7 @@ def _level(centres: np.ndarray, ups: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return c0, np.stack([x, np.cross(n, x), n])
 
 
-def floor_depth(heights: np.ndarray, bin_share: float = 0.01, min_points: int = 30) -> tuple[float, int] | None:
+def floor_depth(heights: np.ndarray, bin_share: float = 0.01, min_points: int = 12) -> tuple[float, int] | None:
     """(depth, support): how far below the cameras the floor lies, in the map's units, and
     how many points support it, from the heights (N,) of the map's points above the cameras'
     plane (negative below). The floor is the densest horizontal layer below the cameras: a
@@ -213,7 +214,8 @@ def floor_depth(heights: np.ndarray, bin_share: float = 0.01, min_points: int = 
 
 
 def floor_alignment(centres: np.ndarray, ups: np.ndarray, target_xy: np.ndarray,
-                    camera_height_m: float, points: np.ndarray | None = None) -> tuple[np.ndarray, str]:
+                    camera_height_m: float, points: np.ndarray | None = None,
+                    forwards: np.ndarray | None = None, headings: np.ndarray | None = None) -> tuple[np.ndarray, str]:
     """(world_from_sfm 4x4 similarity, how the scale was found) taking SfM camera `centres`
     (N, 3) to the floor frame. Level: the centres' best-fit plane becomes z =
     `camera_height_m` (normal along the mean camera `ups`). Scale, from what the robot knows:
@@ -221,8 +223,11 @@ def floor_alignment(centres: np.ndarray, ups: np.ndarray, target_xy: np.ndarray,
       height below the cameras, so s = camera_height_m / depth (independent of odometry);
     - "odometry": no floor found (or no points): the 2-D similarity (Umeyama) onto
       `target_xy` (N, 2), the dead-reckoning positions over the whole random stage (metres).
-    Heading and position: the 2-D rigid fit (scale fixed) onto `target_xy` (compass-aided
-    dead reckoning from the known start)."""
+    Heading: with the cameras' SfM viewing directions `forwards` (N, 3) and their world
+    `headings` (N,) (rad, from the compass), the circular mean of the differences of the
+    levelled yaws (good even for one circle of photos, whose centres barely move); else the
+    2-D fit onto `target_xy`. Position: the centroid of `target_xy` (compass-aided dead
+    reckoning from the known start)."""
     c0, level = _level(centres, ups)
     p = (centres - c0) @ level.T
     floor = None
@@ -232,8 +237,11 @@ def floor_alignment(centres: np.ndarray, ups: np.ndarray, target_xy: np.ndarray,
     how = "odometry"
     if floor is not None:
         s, how = camera_height_m / floor[0], "floor"
-        _, R, _ = umeyama_2d(p[:, :2], target_xy)  # the rotation does not depend on the scale
-        t = target_xy.mean(0) - s * R @ p[:, :2].mean(0)
+    if forwards is not None and headings is not None:
+        f = np.asarray(forwards, float) @ level.T
+        a = np.angle(np.mean(np.exp(1j * (np.asarray(headings, float) - np.arctan2(f[:, 1], f[:, 0])))))
+        R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    t = target_xy.mean(0) - s * R @ p[:, :2].mean(0)
     S = np.eye(4)
     S[:2, :2], S[:2, 3], S[2, 2], S[2, 3] = s * R, t, s, camera_height_m
     L = rigid(level, -level @ c0)
@@ -258,28 +266,59 @@ def initial_map(images: list[np.ndarray], K: np.ndarray, estimates: np.ndarray, 
         raise MapError(f"{len(images)} photos: SfM needs at least {config.min_registered}")
     work = Path(tempfile.mkdtemp(prefix="ibrnav_sfm_"))
     try:
-        rec = run_sfm(images, K, compass_rad, config, work)
-        cams, idx = {}, []
-        for image in rec.images.values():
-            if image.has_pose:
-                i = int(Path(image.name).stem)
-                cams[i] = Camera.from_pycolmap(image, rec.cameras[image.camera_id])
-                idx.append(i)
-        idx = sorted(idx)
-        centres = np.array([cams[i].center for i in idx])
-        ups = np.array([-cams[i].world_from_cam[:3, 1] for i in idx])
-        cam_xy = np.array([_camera_xy(e, cam_from_robot) for e in np.asarray(estimates)[idx]])
-        sfm_points = np.array([p.xyz for p in rec.points3D.values()]).reshape(-1, 3)
-        world_from_sfm, how = floor_alignment(centres, ups, cam_xy, float(np.linalg.inv(cam_from_robot)[2, 3]),
-                                              sfm_points)
-        log.info(f"initial map: metric scale from the {'floor plane and the camera height' if how == 'floor' else 'odometry (no floor plane found)'}")
-        h, w = images[0].shape[:2]  # COLMAP's K has the half-pixel offset: keep the known K
-        cameras = {i: Camera(K, w, h, _transform_camera(cams[i], world_from_sfm).cam_from_world,
-                             f"photo_{i:05d}") for i in idx}
-        pts, cols, seen_from = _sfm_points(rec, world_from_sfm, cameras)
+        recs = run_sfm(images, K, compass_rad, config, work)
+        h, w = images[0].shape[:2]
+        cameras, parts = {}, []
+        for k, rec in enumerate(recs):
+            placed = _place_model(rec, K, (w, h), estimates, compass_rad, cam_from_robot, largest=k == 0)
+            if placed is not None:
+                cameras.update(placed[0])
+                parts.append(placed[1])
+        pts, cols, seen_from = (np.vstack([q[j] for q in parts]) for j in range(3))
+        log.info(f"initial map: {len(parts)} of {len(recs)} SfM models placed in metres "
+                 f"({[r.num_reg_images() for r in recs]} photos each)")
+        idx = sorted(cameras)
     finally:
         shutil.rmtree(work, ignore_errors=True)
     return _mesh_map(cameras, pts, cols, seen_from, config, registered=len(idx))
+
+
+def _place_model(rec, K: np.ndarray, size: tuple[int, int], estimates: np.ndarray, compass_rad: np.ndarray,
+                 cam_from_robot: np.ndarray, largest: bool):
+    """({index: Camera} in the floor frame, (points, colours, seen_from)) of one SfM model:
+    levelled, in metres by the floor and the camera height, turned by the compass, placed on
+    the dead reckoning (`floor_alignment`). A model with no floor in its points is kept only
+    when it is the largest (its scale then comes from the odometry); else None."""
+    cams = {int(Path(im.name).stem): Camera.from_pycolmap(im, rec.cameras[im.camera_id])
+            for im in rec.images.values() if im.has_pose}
+    idx = sorted(cams)
+    if len(idx) < 3:
+        return None
+    centres = np.array([cams[i].center for i in idx])
+    ups = np.array([-cams[i].world_from_cam[:3, 1] for i in idx])
+    fwd = np.array([cams[i].world_from_cam[:3, 2] for i in idx])
+    est = np.asarray(estimates)[idx]
+    cam_xy = np.array([_camera_xy(e, cam_from_robot) for e in est])
+    heading = np.array([_camera_yaw(np.r_[e[:2], c], cam_from_robot) for e, c in zip(est, np.asarray(compass_rad)[idx])])
+    sfm_points = np.array([p.xyz for p in rec.points3D.values()]).reshape(-1, 3)
+    world_from_sfm, how = floor_alignment(centres, ups, cam_xy, float(np.linalg.inv(cam_from_robot)[2, 3]),
+                                          sfm_points, fwd, heading)
+    if how != "floor" and not largest:
+        return None
+    log.info(f"initial map: a model of {len(idx)} photos, metric scale from "
+             f"{'the floor plane and the camera height' if how == 'floor' else 'odometry (no floor plane found)'}")
+    w, h = size  # COLMAP's K has the half-pixel offset: keep the known K
+    cameras = {i: Camera(K, w, h, _transform_camera(cams[i], world_from_sfm).cam_from_world, f"photo_{i:05d}")
+               for i in idx}
+    return cameras, _sfm_points(rec, world_from_sfm, cameras)
+
+
+def _camera_yaw(pose: np.ndarray, cam_from_robot: np.ndarray) -> float:
+    """World yaw (rad) of the optical axis of the camera on a robot at SE(2) `pose`."""
+    from robot.protocol import se2_matrix
+
+    f = (se2_matrix(pose) @ np.linalg.inv(cam_from_robot))[:3, 2]
+    return float(np.arctan2(f[1], f[0]))
 
 
 def _camera_xy(pose: np.ndarray, cam_from_robot: np.ndarray) -> np.ndarray:

@@ -34,12 +34,13 @@ def synthetic_sfm(world_name: str, sfm_scale: float, seed: int = 0):
     t = rng.normal(0, 3, 3)
     to_sfm = lambda X: sfm_scale * X @ R.T + t  # noqa: E731
     ups = np.array([-c.world_from_cam[:3, 1] for c in cams]) @ R.T
-    return to_sfm(C), ups, to_sfm(P), C, height
+    fwd = np.array([c.world_from_cam[:3, 2] for c in cams])
+    return to_sfm(C), ups, to_sfm(P), C, height, fwd @ R.T, np.arctan2(fwd[:, 1], fwd[:, 0])
 
 
 def test_scale_from_the_camera_height_is_within_one_percent():
     for name, sfm_scale in (("office", 0.37), ("apartment", 2.9)):
-        centres, ups, points, true_c, height = synthetic_sfm(name, sfm_scale)
+        centres, ups, points, true_c, height, _, _ = synthetic_sfm(name, sfm_scale)
         odometry_xy = 1.08 * true_c[:, :2]  # dead reckoning 8 % long (wheel slip, wrong radius)
         M, how = floor_alignment(centres, ups, odometry_xy, height, points)
         scale = np.cbrt(np.linalg.det(M[:3, :3]))
@@ -59,3 +60,18 @@ def test_floor_depth_is_the_densest_layer_below_the_cameras():
     depth, n = floor_depth(np.r_[walls, table, floor])
     assert abs(depth - 1.2) < 0.012 and n >= 400
     assert floor_depth(rng.uniform(0, 1, 100)) is None  # nothing below the cameras
+
+
+def test_one_circle_is_placed_by_the_floor_and_the_compass():
+    """One circle of photos (its centres move a few cm): the floor gives the scale, the
+    compass (2 degrees of noise) the heading, the dead reckoning (5 cm off) the position."""
+    centres, ups, points, true_c, height, fwd, yaw = synthetic_sfm("office", 0.5, seed=3)
+    one = slice(0, 12)
+    rng = np.random.default_rng(0)
+    compass = yaw[one] + np.radians(rng.normal(0, 2, 12))
+    M, how = floor_alignment(centres[one], ups[one], true_c[one, :2] + [0.05, 0.0], height, points, fwd[one], compass)
+    mapped = centres[one] @ M[:3, :3].T + M[:3, 3]
+    assert how == "floor" and np.linalg.norm(mapped - true_c[one], axis=1).max() < 0.08
+    f = fwd[one] @ M[:3, :3].T
+    yaw_err = np.degrees(np.abs(np.angle(np.exp(1j * (np.arctan2(f[:, 1], f[:, 0]) - yaw[one])))))
+    assert yaw_err.max() < 1.5 and abs(np.cbrt(np.linalg.det(M[:3, :3])) * 0.5 - 1) < 0.01
