@@ -22,7 +22,7 @@ from robot.session import KILL_ENV, CaptureSession, load_session_scene
 from robot.sim_robot import SimRobot, SimRobotConfig
 
 BIN = Path(sys.executable).parent
-DEMO = ["demo", "--random-photos", "36", "--circle-step-deg", "20", "--photos", "40", "--width", "240",
+DEMO = ["demo", "--world", "office", "--random-photos", "36", "--circle-step-deg", "20", "--photos", "40", "--width", "240",
         "--height", "180", "--max-rounds", "2", "--goals-per-round", "2", "--tour-frames", "0"]
 
 
