@@ -295,12 +295,14 @@ class AdaptiveMission:
         return replace(grid, cost=np.where(d.reshape(H, W) < self.config.robot_radius_m, np.inf, grid.cost))
 
     def _from_here(self, grid):
-        """`grid` with the cells within `robot_radius_m` of the estimate passable (at most
-        `max_path_cost`): the robot stands there, whatever the bumps or the map say, so A*
-        and the reachable set start from the same free cells."""
+        """`grid` with the cells within `robot_radius_m` plus twice the filter's spread of
+        the estimate passable (at most `max_path_cost`): the robot stands somewhere there,
+        whatever the bumps or the map say, so A* and the reachable set start from the same
+        free cells even when the estimate is a little off."""
         H, W = grid.shape
         xy = grid.cell_to_world(np.indices((H, W)).reshape(2, -1).T)
-        here = (np.linalg.norm(xy - self.body.est.pose[:2], axis=1) < self.config.robot_radius_m).reshape(H, W)
+        r = self.config.robot_radius_m + 2 * self._spread()
+        here = (np.linalg.norm(xy - self.body.est.pose[:2], axis=1) < r).reshape(H, W)
         return replace(grid, cost=np.where(here, np.minimum(grid.cost, self.config.max_path_cost), grid.cost))
 
     def _bumped(self, motion, grid):

@@ -191,26 +191,35 @@ def _level(centres: np.ndarray, ups: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return c0, np.stack([x, np.cross(n, x), n])
 
 
-def floor_depth(heights: np.ndarray, bin_share: float = 0.01, min_points: int = 12) -> tuple[float, int] | None:
+def floor_depth(heights: np.ndarray, bin_share: float = 0.01, min_points: int = 12,
+                bottom_share: float = 0.6, contrast: float = 3.0) -> tuple[float, int] | None:
     """(depth, support): how far below the cameras the floor lies, in the map's units, and
     how many points support it, from the heights (N,) of the map's points above the cameras'
-    plane (negative below). The floor is the densest horizontal layer below the cameras: a
-    histogram of the depths in bins of `bin_share` of their 95th percentile (a share: no unit),
-    its fullest bin, refined to the median depth of the points within 1.5 bins of it. Walls
-    spread their points over every height, a table's top is small, so the floor's spike wins.
-    None when fewer than `min_points` points lie below the cameras or the spike holds fewer."""
+    plane (negative below). The floor is the densest horizontal layer at the bottom of the
+    scene: a histogram of the depths in bins of `bin_share` of their 99th percentile (shares:
+    no unit); its fullest bin among the depths beyond `bottom_share` of that percentile
+    (nothing but the floor lies low: a table's top is higher, walls spread their points over
+    every height), refined to the median depth of the points within 1.5 bins of it. None
+    (no floor found) when fewer than `min_points` points lie there, or the layer is not
+    `contrast` times as dense as the other depths around it (a floor SfM saw too little of)."""
     depth = -np.asarray(heights, float)
     depth = depth[np.isfinite(depth) & (depth > 0)]
     if len(depth) < min_points:
         return None
-    top = float(np.percentile(depth, 95)) * 1.2
+    top = float(np.percentile(depth, 99)) * 1.1
     width = bin_share * top
     counts, edges = np.histogram(depth, bins=max(int(np.ceil(top / width)), 1), range=(0.0, top))
-    peak = 0.5 * (edges[np.argmax(counts)] + edges[np.argmax(counts) + 1])
-    near = depth[np.abs(depth - peak) <= 1.5 * width]
-    if len(near) < min_points:
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    low = np.flatnonzero(centres >= bottom_share * top / 1.1)
+    if len(low) == 0:
         return None
-    return float(np.median(near)), int(len(near))
+    peak = centres[low[np.argmax(counts[low])]]
+    near = np.abs(depth - peak) <= 1.5 * width  # the layer: 3 bins
+    band = np.abs(depth - peak) <= 15 * width  # its surroundings: 30 bins
+    per_bin_around = (band.sum() - near.sum()) / 27.0
+    if near.sum() < min_points or near.sum() / 3.0 < contrast * per_bin_around:
+        return None
+    return float(np.median(depth[near])), int(near.sum())
 
 
 def floor_alignment(centres: np.ndarray, ups: np.ndarray, target_xy: np.ndarray,
@@ -220,7 +229,9 @@ def floor_alignment(centres: np.ndarray, ups: np.ndarray, target_xy: np.ndarray,
     (N, 3) to the floor frame. Level: the centres' best-fit plane becomes z =
     `camera_height_m` (normal along the mean camera `ups`). Scale, from what the robot knows:
     - "floor": the floor plane in the SfM `points` (M, 3) (`floor_depth`) lies the camera's
-      height below the cameras, so s = camera_height_m / depth (independent of odometry);
+      height below the cameras, so s = camera_height_m / depth (independent of odometry),
+      unless the dead reckoning spreads over half the camera height or more and its scale
+      differs by over 25 % (odometry is a few per cent off, so such a floor is wrong);
     - "odometry": no floor found (or no points): the 2-D similarity (Umeyama) onto
       `target_xy` (N, 2), the dead-reckoning positions over the whole random stage (metres).
     Heading: with the cameras' SfM viewing directions `forwards` (N, 3) and their world
@@ -236,7 +247,11 @@ def floor_alignment(centres: np.ndarray, ups: np.ndarray, target_xy: np.ndarray,
     s, R, t = umeyama_2d(p[:, :2], target_xy)
     how = "odometry"
     if floor is not None:
-        s, how = camera_height_m / floor[0], "floor"
+        s_floor = camera_height_m / floor[0]
+        spread = np.sqrt(np.mean(np.sum((target_xy - target_xy.mean(0)) ** 2, axis=1)))
+        # a floor at odds with a well-spread odometry (over half the camera height) is wrong
+        if spread < camera_height_m / 2 or abs(np.log(s_floor / s)) < np.log(1.25):
+            s, how = s_floor, "floor"
     if forwards is not None and headings is not None:
         f = np.asarray(forwards, float) @ level.T
         a = np.angle(np.mean(np.exp(1j * (np.asarray(headings, float) - np.arctan2(f[:, 1], f[:, 0])))))
