@@ -55,6 +55,7 @@ def run(args: argparse.Namespace) -> int:
               "stopped_because": result.stopped_because, "stop_reason": result.stop_reason,
               **_truth_report(world, robot, result), "position_errors": obs.error_summary(),
               "seconds": time.perf_counter() - t0}
+    report["eval_capture"] = _eval_capture(world, robot, result, args.eval_poses, args.seed)
     if args.json:
         Path(args.json).write_text(json.dumps(report, indent=1))
     print(f"{args.strategy}: coverage {report['coverage']:.3f} with {report['photos']} photos, "
@@ -76,6 +77,21 @@ def _truth_report(world, robot, result) -> dict:
             "rooms_visited": visited, "rooms": rooms}
 
 
+def _eval_capture(world, robot, result, n_poses: int, seed: int) -> dict | None:
+    """ULR of the captured model at `n_poses` random free-space poses against the world's
+    true renders (`robot.mission.evaluation.eval_capture`), at half the photos' size; None
+    without a model (random strategy: no map) or with --eval-poses 0."""
+    from robot.mission.evaluation import eval_capture
+
+    posed = [p for p in result.model_photos if p.camera is not None]
+    if n_poses <= 0 or result.robot_map is None or not posed:
+        return None
+    half = posed[0].camera.scaled(0.5)
+    return eval_capture(world, [p.camera for p in posed], [p.photo.image for p in posed], result.robot_map.mesh,
+                        n_poses, np.random.default_rng(seed + 1), half.K, (half.width, half.height),
+                        robot.cam_from_robot)
+
+
 def register(subparsers) -> None:
     e = subparsers.add_parser("explore", help="run a capture strategy in a synthetic scene with a photo "
                               "budget and report surface coverage")
@@ -84,5 +100,7 @@ def register(subparsers) -> None:
     e.add_argument("--strategy", choices=("adaptive", "random"), default="adaptive")
     add_mission_args(e, 136)
     e.add_argument("--json", default=None, help="write the report here")
+    e.add_argument("--eval-poses", type=int, default=50, help="random free-space poses at which ULR renders of the "
+                   "captured model are compared with the world's true renders (0: none; adaptive only)")
     recording.add_rerun_args(e)
     e.set_defaults(func=run)

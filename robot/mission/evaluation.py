@@ -60,3 +60,44 @@ def rooms_visited(world, photos: list[MissionPhoto], truth: dict[int, np.ndarray
     seen = {world.room_at(truth[p.photo.index][:2]) for p in photos
             if p.stage != "localise" and p.photo.index in truth}
     return [r for r in rooms if r in seen], rooms
+
+
+def eval_capture(world, cameras: list, images: list[np.ndarray], mesh, n_poses: int, rng: np.random.Generator,
+                 intrinsics: np.ndarray, size: tuple[int, int], cam_from_robot: np.ndarray,
+                 clearance_m: float = 0.15, ctx=None) -> dict:
+    """What the capture is for: new views. ULR renders (`ibr.render.ulr`) of the captured
+    model (posed `cameras`, their `images`, the proxy `mesh`) at `n_poses` random robot
+    poses in the world's free space (eroded by `clearance_m`, the robot's radius; random
+    headings; the robot's camera height and intrinsics at `size` (w, h)) against the world's
+    true renders: PSNR (dB) and SSIM over the covered pixels, and the covered fraction; mean
+    and worst decile (the mean of the worst 10 %) of each. Views ULR covers nowhere count
+    with a covered fraction of 0 and no PSNR/SSIM."""
+    from explore.candidates import sample_candidates
+    from ibr.render.eval import psnr, ssim
+    from ibr.render.ulr import UlrRenderer
+    from ibr.scene import Scene, View
+    from robot.protocol import robot_camera
+
+    poses = sample_candidates(world.free_space, n_poses, rng, clearance_m)
+    ulr = UlrRenderer(Scene("capture", [View(c, im) for c, im in zip(cameras, images)]), mesh, ctx)
+    p, s, cov = [], [], []
+    try:
+        for k, pose in enumerate(poses):
+            cam = robot_camera(pose, intrinsics, size, cam_from_robot, name=f"eval_{k:03d}")
+            truth = world.photograph(cam, ctx)
+            image, covered = ulr.render(cam)
+            cov.append(float(covered.mean()))
+            if covered.any():
+                p.append(psnr(image, truth, covered))
+                s.append(ssim(image, truth, covered))
+    finally:
+        ulr.release()
+
+    def summary(v: list[float], higher_better: bool = True) -> dict:
+        v = np.sort(np.asarray([x for x in v if np.isfinite(x)], float))
+        if len(v) == 0:
+            return {"mean": None, "worst_decile": None}
+        worst = v[:max(1, len(v) // 10)] if higher_better else v[-max(1, len(v) // 10):]
+        return {"mean": float(v.mean()), "worst_decile": float(worst.mean())}
+
+    return {"poses": len(poses), "psnr_db": summary(p), "ssim": summary(s), "covered": summary(cov)}
