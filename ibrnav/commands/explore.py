@@ -56,6 +56,7 @@ def run(args: argparse.Namespace) -> int:
               **_truth_report(world, robot, result), "position_errors": obs.error_summary(),
               "seconds": time.perf_counter() - t0}
     report["eval_capture"] = _eval_capture(world, robot, result, args.eval_poses, args.seed)
+    report["achievable_coverage"] = _achievable(world, robot, args.achievable_poses)
     if args.json:
         Path(args.json).write_text(json.dumps(report, indent=1))
     print(f"{args.strategy}: coverage {report['coverage']:.3f} with {report['photos']} photos, "
@@ -92,6 +93,19 @@ def _eval_capture(world, robot, result, n_poses: int, seed: int) -> dict | None:
                         robot.cam_from_robot)
 
 
+def _achievable(world, robot, n_poses: int) -> float | None:
+    """`robot.mission.coverage.achievable_coverage` of the world with the robot's camera
+    (None with --achievable-poses 0)."""
+    from robot.mission.coverage import CoverageConfig, achievable_coverage
+    from robot.protocol import robot_camera
+
+    if n_poses <= 0:
+        return None
+    at = lambda poses: (robot_camera(p, robot.intrinsics, robot.image_size, robot.cam_from_robot)  # noqa: E731
+                        for p in poses)
+    return achievable_coverage(world.mesh, world.free_space, at, n_poses, config=CoverageConfig())
+
+
 def register(subparsers) -> None:
     e = subparsers.add_parser("explore", help="run a capture strategy in a synthetic scene with a photo "
                               "budget and report surface coverage")
@@ -100,6 +114,8 @@ def register(subparsers) -> None:
     e.add_argument("--strategy", choices=("adaptive", "random"), default="adaptive")
     add_mission_args(e, 136)
     e.add_argument("--json", default=None, help="write the report here")
+    e.add_argument("--achievable-poses", type=int, default=2000, help="poses of the dense capture whose coverage "
+                   "is reported as achievable_coverage (0: none)")
     e.add_argument("--eval-poses", type=int, default=50, help="random free-space poses at which ULR renders of the "
                    "captured model are compared with the world's true renders (0: none; adaptive only)")
     recording.add_rerun_args(e)
