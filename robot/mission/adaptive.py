@@ -222,8 +222,9 @@ class AdaptiveMission:
         are drawn in the free space of the mesh slice (`explore.candidates`) and kept only
         where (a) some photo saw through them (`ViewQuality.seen_free`: not behind a wall of
         the map nor inside furniture), (b) the robot can drive to on this round's grid (the
-        component of its cell that A* can search, `explore.nav_grid.reachable_mask`), and
-        (c) not near a goal given up before (`given_up_goals`). No candidate left: no goal,
+        component of its cell that A* can search, `explore.nav_grid.reachable_mask`; on the
+        strict grid, else the relaxed one, `nav_grid`), and (c) not near a goal given up
+        before (`given_up_goals`). No candidate left: no goal,
         best score 0 (the mission stops: "no reachable goal")."""
         c = self.config
         cams = [p.camera for p in self.photos if p.camera is not None and p.stage != "localise"]
@@ -232,15 +233,20 @@ class AdaptiveMission:
         vq = ViewQuality(self.map.mesh, cams, config=c.view_quality)
         try:
             self._seen_free = vq.seen_free  # numpy only: still usable after release()
-            grid = self.nav_grid(free)
-            cand = self._candidates(free, grid)
+            for strict in (True, False):
+                grid = self.nav_grid(free, strict)
+                cand = self._candidates(free, grid)
+                if len(cand) == 0:
+                    continue
+                clip, eyes = vq.pose_views(cand, self.template, self.robot.cam_from_robot)
+                seen = vq.seen_free(eyes, c.clearance_m)  # not behind the map's walls, nor in furniture
+                cand = cand[seen]
+                if len(cand):
+                    break
             if len(cand) == 0:
                 self.obs.map(self.map, free)
                 return np.zeros((0, 3)), 0.0, grid
-            clip, eyes = vq.pose_views(cand, self.template, self.robot.cam_from_robot)
-            seen = vq.seen_free(eyes, c.clearance_m)  # not behind the map's walls, nor in furniture
-            cand = cand[seen]
-            scores = vq.score_views(clip[seen], eyes[seen]) if len(cand) else np.zeros(0)
+            scores = vq.score_views(clip[seen], eyes[seen])
         finally:
             vq.release()
         pick = pick_goals(cand, scores, c.goals_per_round, c.goal_separation_m)
@@ -264,11 +270,13 @@ class AdaptiveMission:
             keep &= d.min(axis=1) >= c.goal_separation_m
         return cand[keep]
 
-    def nav_grid(self, free):
+    def nav_grid(self, free, strict: bool = True):
         """The KDE grid over the photos' positions and the free space; cells no photo saw
         through (a table with few points, space behind a wall or a plain wall SfM found no
-        point on) are blocked: the robot drives only where its photos saw empty space (and
-        where it stands, `_from_here`). The filter's box prior is grown to cover it."""
+        point on) are blocked when `strict` (the robot drives only where its photos saw empty
+        space, and where it stands, `_from_here`), else they cost `max_path_cost`: passable
+        but dear (`choose_goals` relaxes to this when the strict grid reaches no candidate,
+        e.g. where the proxy has holes). The filter's box prior is grown to cover it."""
         cams = np.array([p.estimate[:2] for p in self.photos])
         lo = np.minimum(cams.min(0), np.asarray(free.bounds[:2])) - 0.5
         hi = np.maximum(cams.max(0), np.asarray(free.bounds[2:])) + 0.5
@@ -280,7 +288,8 @@ class AdaptiveMission:
             H, W = grid.shape
             xy = grid.cell_to_world(np.indices((H, W)).reshape(2, -1).T)
             free_cells = seen(np.c_[xy, np.full(len(xy), self.cam_height)], self.config.grid_seen_margin_m)
-            grid = replace(grid, cost=np.where(free_cells.reshape(H, W), grid.cost, np.inf))
+            unseen = np.inf if strict else np.maximum(grid.cost, self.config.max_path_cost)
+            grid = replace(grid, cost=np.where(free_cells.reshape(H, W), grid.cost, unseen))
         grid = self._with_bumps(grid, self.bumps)
         self.obs.grid(grid)
         return grid
@@ -296,14 +305,15 @@ class AdaptiveMission:
 
     def _from_here(self, grid):
         """`grid` with the cells within `robot_radius_m` plus twice the filter's spread of
-        the estimate passable (at most `max_path_cost`): the robot stands somewhere there,
-        whatever the bumps or the map say, so A* and the reachable set start from the same
-        free cells even when the estimate is a little off."""
+        the estimate that bumps or unseen space blocked (inf) made passable (at
+        `max_path_cost`): the robot stands somewhere there, so A* and the reachable set
+        start from the same free cells even when the estimate is a little off. Cells the
+        map's points make dear stay as they are (a wall near the robot is not opened)."""
         H, W = grid.shape
         xy = grid.cell_to_world(np.indices((H, W)).reshape(2, -1).T)
         r = self.config.robot_radius_m + 2 * self._spread()
         here = (np.linalg.norm(xy - self.body.est.pose[:2], axis=1) < r).reshape(H, W)
-        return replace(grid, cost=np.where(here, np.minimum(grid.cost, self.config.max_path_cost), grid.cost))
+        return replace(grid, cost=np.where(here & np.isinf(grid.cost), self.config.max_path_cost, grid.cost))
 
     def _bumped(self, motion, grid):
         """Remember where the bumper touched (the robot's edge ahead of, or behind, the

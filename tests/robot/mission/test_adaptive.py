@@ -164,12 +164,14 @@ def test_a_given_up_goal_is_not_drawn_again(office):
 
 
 def test_a_mission_that_can_reach_no_goal_stops(office):
-    """The robot fenced in tightly: no candidate is reachable, the adaptive stage stops at
-    once with "no reachable goal" instead of giving goals up round after round."""
+    """The robot fenced in tightly (and the spot inside given up before): no candidate is
+    reachable, the adaptive stage stops at once with "no reachable goal" instead of giving
+    goals up round after round."""
     from robot.mission.mission import MissionResult, adaptive_rounds
 
     m, _, _ = office
     trapped = fenced(m, 0.4)
+    trapped.given_up_goals = [m.body.est.pose.copy()]  # the little room inside was tried before
     result = MissionResult(list(trapped.photos), trapped.map)
     n = len(trapped.photos)
     adaptive_rounds(trapped, result, photo_budget=n + 50)
