@@ -1,5 +1,6 @@
 """`ibrnav demo`: the autonomous scene-capture mission of Foster, Wang & Grupen in a
-synthetic apartment (`--world office` for the office; `robot.mission`): random exploration, the initial map (SfM), adaptive
+synthetic apartment (`--world office` for the office; `robot.mission`): random exploration,
+the initial map (SfM), adaptive
 exploration with the rendering-quality heuristic until the gain runs out, the final model and
 a virtual tour (ULR fly-through). Path following runs on an SE(2) particle filter. Every photo,
 pose estimate and map event goes to a capture session folder as it happens, with a commit per

@@ -314,7 +314,8 @@ def _place_model(rec, K: np.ndarray, size: tuple[int, int], estimates: np.ndarra
     fwd = np.array([cams[i].world_from_cam[:3, 2] for i in idx])
     est = np.asarray(estimates)[idx]
     cam_xy = np.array([_camera_xy(e, cam_from_robot) for e in est])
-    heading = np.array([_camera_yaw(np.r_[e[:2], c], cam_from_robot) for e, c in zip(est, np.asarray(compass_rad)[idx])])
+    heading = np.array([_camera_yaw(np.r_[e[:2], c], cam_from_robot)
+                        for e, c in zip(est, np.asarray(compass_rad)[idx])])
     sfm_points = np.array([p.xyz for p in rec.points3D.values()]).reshape(-1, 3)
     world_from_sfm, how = floor_alignment(centres, ups, cam_xy, float(np.linalg.inv(cam_from_robot)[2, 3]),
                                           sfm_points, fwd, heading)
