@@ -3,7 +3,7 @@
 Conventions (docs/ARCHITECTURE.md): camera axes are OpenCV's (x right, y down, z forward); pixel
 (u, v) = (0, 0) is the *centre* of the top-left pixel; metres and radians. Every function
 about views takes `Camera` objects. Conversions live here, each in one place:
-from pycolmap, from/to Strecha `.camera` files and to OpenGL (`gl_projection`, the only
+from and to pycolmap, from/to Strecha `.camera` files and to OpenGL (`gl_projection`, the only
 code that knows GL's clip-space conventions). The conversion to rerun is `ibr.viz.camera_archetypes`
 (algorithm code does not import rerun).
 """
@@ -103,12 +103,25 @@ class Camera:
     def from_pycolmap(cls, image, camera=None) -> "Camera":
         """From a registered `pycolmap.Image` (and its `pycolmap.Camera`).
 
-        Only the pinhole part is kept; undistorting images is the COLMAP loader's job."""
+        Only the pinhole part is kept; undistorting images is the COLMAP loader's job.
+        COLMAP puts pixel (0, 0) at the top-left pixel's *corner*, ibrnav at its centre, so
+        the principal point moves by half a pixel (`to_pycolmap` adds it back)."""
         camera = camera if camera is not None else image.camera
         pose = image.cam_from_world()
         T = np.eye(4)
         T[:3, :] = pose.matrix()
-        return cls(camera.calibration_matrix(), camera.width, camera.height, T, image.name)
+        K = camera.calibration_matrix().copy()
+        K[:2, 2] -= 0.5
+        return cls(K, camera.width, camera.height, T, image.name)
+
+    def to_pycolmap(self, camera_id: int = 1):
+        """This camera's intrinsics as a `pycolmap.Camera` (PINHOLE; skew dropped), in
+        COLMAP's pixel convention (principal point + 0.5, see `from_pycolmap`)."""
+        import pycolmap
+
+        K = self.K
+        return pycolmap.Camera(model="PINHOLE", width=self.width, height=self.height, camera_id=camera_id,
+                               params=[K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5])
 
     @classmethod
     def from_strecha_file(cls, path: str | Path, name: str = "") -> "Camera":

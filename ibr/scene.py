@@ -1,6 +1,7 @@
 """`Scene`: posed images (+ optional proxy mesh and points), and `load_scene(spec)`.
 
-A spec is a path (a Strecha-format folder or a COLMAP model folder) or
+A spec is a path (a Strecha-format folder, a COLMAP model folder or a robot's capture
+folder, `ibr.capture`) or
 `synthetic:NAME[?seed=N&views=N&width=W&height=H]`; `parse_scene_spec` is the one reader of
 that text, for every command. Every bad input raises one `SceneError` that names the
 offending file or spec. Nothing downstream knows a file format.
@@ -20,6 +21,8 @@ from ibr.camera import Camera, CameraError
 from ibr.errors import InputError
 
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".tif", ".tiff", ".bmp", ".ppm"}
+MODEL_MESH = "mesh.ply"
+"""A COLMAP model folder's mesh (`ibrnav export`, a capture's `model/`): the scene's mesh."""
 
 
 class SceneError(InputError):
@@ -177,7 +180,50 @@ def load_colmap(folder: str | Path, image_dir: str | Path | None = None) -> Scen
     pts = rec.points3D
     xyz = np.array([p.xyz for p in pts.values()]).reshape(-1, 3)
     rgb = np.array([p.color for p in pts.values()], dtype=np.uint8).reshape(-1, 3)
-    return Scene(folder.name, views, points=xyz, point_colors=rgb, root=folder)
+    mesh_path = next((m / MODEL_MESH for m in (model, folder) if (m / MODEL_MESH).is_file()), None)
+    mesh = trimesh.load(mesh_path, process=False, force="mesh") if mesh_path is not None else None
+    return Scene(folder.name, views, mesh=mesh, points=xyz, point_colors=rgb, root=folder)
+
+
+def load_capture(folder: str | Path, refine: bool = False, use_model: bool = True) -> Scene:
+    """A robot's capture-session folder (`ibr.capture` reads its layout): its final model
+    (`model/`: COLMAP model and mesh) when the mission wrote one and `use_model`, else every
+    photo at the filter's logged pose with the mission's last map (mesh and points) when
+    there is one.
+    `refine`: pycolmap triangulation with the poses fixed, then bundle adjustment
+    (`ibr.proxy.refine`); how far the poses moved is `scene.meta["refinement"]`.
+    `scene.meta["poses"]`: "model" or "filter", "+ refined" when refined."""
+    from ibr.capture import PHOTOS, read_capture
+
+    cap = read_capture(folder)
+    if use_model and cap.model is not None:
+        loaded = load_colmap(cap.model, cap.folder / PHOTOS)
+        views = [replace(v, camera=v.camera.with_pose(v.camera.cam_from_world, Path(v.name).stem))
+                 for v in loaded]
+        scene = replace(loaded, name=cap.folder.name, views=views, root=cap.folder, meta={"poses": "model"})
+    else:
+        views = [View(cam, read_image(cap.folder / r["file"], cap.image_size), cap.folder / r["file"])
+                 for cam, r in zip(cap.photo_cameras(), cap.photos)]
+        scene = Scene(cap.folder.name, views, root=cap.folder, meta={"poses": "filter"})
+        last = cap.last_map()
+        if last is not None:
+            scene.mesh, scene.points, scene.point_colors = last
+            scene.meta["map"] = cap.maps[-1].name
+    scene.meta["session"] = cap.meta
+    return refine_scene(scene) if refine else scene
+
+
+def refine_scene(scene: Scene) -> Scene:
+    """The scene with its poses refined by `ibr.proxy.refine.refine_poses` (triangulate with
+    the poses fixed, then bundle-adjust), its points the refined ones; the report of how far
+    the poses moved is `meta["refinement"]`. The mesh is kept (it was built on the old poses)."""
+    from ibr.proxy.refine import refine_poses
+
+    result = refine_poses(scene.cameras, [v.image for v in scene.views])
+    views = [replace(v, camera=c) for v, c in zip(scene.views, result.cameras)]
+    meta = {**scene.meta, "poses": f"{scene.meta.get('poses', 'given')} + refined",
+            "refinement": result.report()}
+    return replace(scene, views=views, points=result.points, point_colors=result.colors, meta=meta)
 
 
 SYNTHETIC_PARAMS = ("seed", "views", "width", "height")
@@ -240,18 +286,27 @@ def load_synthetic(spec: str | SceneSpec) -> Scene:
                  meta={"seed": world.seed})
 
 
-def load_scene(spec: str | Path) -> Scene:
-    """Load a scene from a path (Strecha folder or COLMAP model folder) or a
-    `synthetic:NAME[?seed=N]` spec. Raises SceneError naming the bad input."""
+def load_scene(spec: str | Path, refine: bool = False) -> Scene:
+    """Load a scene from a path (Strecha folder, COLMAP model folder or a robot's capture
+    folder) or a `synthetic:NAME[?seed=N]` spec. `refine`: bundle-adjust the poses first
+    (`refine_scene`). Raises SceneError naming the bad input."""
     parsed = parse_scene_spec(spec)
     if parsed.world is not None:
-        return load_synthetic(parsed)
+        scene = load_synthetic(parsed)
+        return refine_scene(scene) if refine else scene
     path = parsed.path
     if not path.exists():
         raise SceneError(f"{path}: no such scene folder (or use synthetic:office)")
+    from ibr.capture import is_capture_folder
+
+    if is_capture_folder(path):
+        return load_capture(path, refine)
     if (path / "cameras").is_dir() and (path / "images").is_dir():
-        return load_strecha(path)
-    if find_colmap_model(path) is not None:
-        return load_colmap(path)
-    raise SceneError(f"{path}: not a scene folder; expected images/ + cameras/ (Strecha) or a "
-                     "COLMAP model (cameras.bin, images.bin, points3D.bin, here or in sparse/0)")
+        scene = load_strecha(path)
+    elif find_colmap_model(path) is not None:
+        scene = load_colmap(path)
+    else:
+        raise SceneError(f"{path}: not a scene folder; expected images/ + cameras/ (Strecha), a "
+                         "COLMAP model (cameras.bin, images.bin, points3D.bin, here or in sparse/0) or a "
+                         "capture folder (session.json, log.jsonl, photos/)")
+    return refine_scene(scene) if refine else scene

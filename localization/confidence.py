@@ -36,8 +36,10 @@ class ConfidenceConfig:
 
     agreement: tuple[float, float] = (0.75, 0.95)
     """explained / reference: no confidence at the first ratio, full at the second."""
-    support: tuple[float, float] = (0.02, 0.10)
-    """Trusted share of the photo's pixels: no confidence at the first, full at the second."""
+    support: tuple[float, float] = (0.005, 0.02)
+    """Trusted share of the photo's pixels (at the finest width, 384 px): no confidence at the
+    first, full at the second (about 500 and 2,000 trusted pixels: enough to decide, while
+    the agreement test rejects wrong poses)."""
     rival_margin: float = 0.01
     """A distinct pose whose cost is within this (robust-cost units) of the best is a rival."""
     distinct_px: float = 8.0
@@ -79,14 +81,16 @@ def judge(best: Alignment, reference: float, rival_gap: float | None,
     rival = 1.0 if rival_gap is None else ramp(rival_gap, 0.0, config.rival_margin)
     confidence = agreement * support * rival
     reason = ""
-    if confidence < 0.5:
-        if support < 0.5:
+    if confidence < 0.5:  # the first failed test, in order of how much it says
+        if agreement < 0.5:
+            reason = (f"the model explains {best.explained:.2f} of the photo's structure, "
+                      f"{ratio:.0%} of what it explains at its own photos ({reference:.2f})")
+        elif support < 0.5:
             reason = f"the trusted model covers only {best.trusted:.1%} of the photo"
         elif rival < 0.5:
             reason = f"a distinct pose explains the photo almost as well (cost gap {rival_gap:.4f})"
         else:
-            reason = (f"the model explains {best.explained:.2f} of the photo's structure, "
-                      f"{ratio:.0%} of what it explains at its own photos ({reference:.2f})")
+            reason = f"agreement {agreement:.2f} x support {support:.2f} x no rival {rival:.2f} is below 0.5"
     return Verdict(confidence >= 0.5, confidence, reason, best.explained, reference, best.trusted, rival_gap)
 
 

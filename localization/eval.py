@@ -9,11 +9,12 @@ import logging
 from collections.abc import Callable
 
 import numpy as np
+import shapely
 
 from ibr.progress import progress
 from ibr.proxy.proxy_geometry import build_proxy
 from ibr.proxy.triangulation import sift_features
-from ibr.scene import Scene
+from ibr.scene import Scene, View
 from localization.feature_localizer import pose_errors
 from localization.localize import METHODS, LocalizeError, LocConfig, SceneLocalizer
 from localization.pose6_filter import cam_from_world_of, sample_around
@@ -44,24 +45,54 @@ def median_point_depth(scene: Scene) -> float:
 def prior_spread_m(spread: str, scene: Scene) -> float:
     """--spread-m as metres: "0.5" is metres, "10%" a fraction of `median_point_depth`."""
     text = str(spread).strip()
+    share = text.endswith("%")
     try:
-        if text.endswith("%"):
-            return float(text[:-1]) / 100.0 * median_point_depth(scene)
-        value = float(text)
+        value = float(text[:-1] if share else text)
     except ValueError:
         value = float("nan")
+    if np.isfinite(value) and value > 0 and share:
+        return value / 100.0 * median_point_depth(scene)
     if not np.isfinite(value) or value <= 0:
         raise LocalizeError(f"--spread-m {spread!r}: expected metres (e.g. 1.0) or a share of the scene depth (e.g. 10%)")
     return value
 
 
+def novel_queries(scene: Scene, n: int, rng: np.random.Generator, depth_m: float, offset: float = 0.1,
+                  turn_deg: float = 10.0) -> list[View]:
+    """n photos of a synthetic scene's world from new poses near its map photos: a map photo's
+    camera moved by up to `offset` x the scene's depth `depth_m` (metres, `median_point_depth`)
+    per horizontal axis (and a tenth of that
+    vertically) and turned by up to `turn_deg`, its centre kept in the world's free space.
+    They are not in the map, as a robot's photo when it comes back is not."""
+    free = scene.world.free_space
+    views = []
+    while len(views) < n:
+        cam = scene.cameras[int(rng.integers(len(scene)))]
+        shift = rng.uniform(-offset, offset, 3) * depth_m * np.array([1.0, 1.0, 0.1])
+        pose = cam_from_world_of(sample_around(cam.cam_from_world, 1, 0.0, np.radians(turn_deg), rng))[0]
+        moved = cam.with_pose(pose, f"query_{len(views):03d}")
+        centre = moved.center + shift
+        if not free.contains(shapely.Point(centre[:2])):
+            continue
+        T = pose.copy()
+        T[:3, 3] = -T[:3, :3] @ centre
+        query = moved.with_pose(T)
+        views.append(View(query, scene.world.photograph(query)))
+    return views
+
+
 def evaluate_localization(scene: Scene, method: str, trials: int, spread_m: float, spread_deg: float,
                           seed: int, config: LocConfig = LocConfig(),
-                          on_trial: Callable | None = None) -> dict:
-    """Leave-one-out: trial i queries view i mod len(scene) against a map of the others,
-    from a prior drawn around its true pose (seed + i). Returns the JSON-ready summary
-    (`summarise`) and per-trial rows (errors null when no pose was returned, the verdict
-    and its reason). on_trial(i, held_view, LocResult, row) is called after each trial."""
+                          on_trial: Callable | None = None, queries: str = "held-out") -> dict:
+    """Trial i localises a query photo against a map, from a prior drawn around its true pose
+    (seed + i). queries "held-out": the query is view i mod len(scene), the map the other
+    views (leave-one-out); "novel" (synthetic scenes): the map is every view and the queries
+    are new photos of the world near them (`novel_queries`), one map for all trials.
+    Returns the JSON-ready summary (`summarise`) and per-trial rows (errors null when no
+    pose was returned, the verdict and its reason). on_trial(i, query_view, LocResult, row)
+    is called after each trial."""
+    if queries == "novel":
+        return evaluate_novel(scene, method, trials, spread_m, spread_deg, seed, config, on_trial)
     if method not in METHODS:
         raise LocalizeError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
     if len(scene) < 3:
@@ -97,7 +128,32 @@ def evaluate_localization(scene: Scene, method: str, trials: int, spread_m: floa
             on_trial(i, held, res, r)
     for loc in localizers.values():
         loc.release()
-    return {"scene": scene.name, "method": method, "trials": trials, "spread_m": spread_m,
+    return {"scene": scene.name, "method": method, "queries": "held-out", "trials": trials, "spread_m": spread_m,
+            "spread_deg": spread_deg, "seed": seed, **summarise(rows), "per_trial": rows}
+
+
+def evaluate_novel(scene: Scene, method: str, trials: int, spread_m: float, spread_deg: float,
+                   seed: int, config: LocConfig, on_trial: Callable | None) -> dict:
+    """`evaluate_localization` with queries "novel": one map of every view, new photos."""
+    if scene.world is None:
+        raise LocalizeError(f"scene {scene.name!r}: novel queries need a synthetic world to photograph")
+    if trials < 1:
+        raise LocalizeError(f"--trials must be at least 1, got {trials}")
+    queries = novel_queries(scene, trials, np.random.default_rng(seed), median_point_depth(scene))
+    loc = SceneLocalizer(scene, method, config)
+    rows = []
+    for i in progress(range(trials), desc="queries", logger=log):
+        held = queries[i]
+        rng = np.random.default_rng(seed + i)
+        truth = held.camera.cam_from_world
+        prior = draw_prior(truth, spread_m, spread_deg, rng)
+        res = loc.localize(held.image, held.camera, prior, spread_m, spread_deg, rng)
+        rows.append(trial_row(i, held.name, res, truth, config))
+        log.info(f"[{i + 1}/{trials}] {held.name}: {rows[-1]['position_m']} m, localised {rows[-1]['localized']}")
+        if on_trial:
+            on_trial(i, held, res, rows[-1])
+    loc.release()
+    return {"scene": scene.name, "method": method, "queries": "novel", "trials": trials, "spread_m": spread_m,
             "spread_deg": spread_deg, "seed": seed, **summarise(rows), "per_trial": rows}
 
 

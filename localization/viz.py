@@ -48,3 +48,8 @@ def log_camera_pose(path: str, camera, image: np.ndarray | None = None) -> None:
     from ibr.viz import log_camera
 
     log_camera(path, camera, image)
+
+
+def log_particle_count(n: int) -> None:
+    """plots/particles: how many particles the filter holds."""
+    rr.log("plots/particles", rr.Scalars(float(n)))

@@ -6,6 +6,7 @@ Layout of a session folder:
     session.json        camera: intrinsics (3, 3), image_size (w, h), cam_from_robot (4, 4); meta
     log.jsonl           one JSON record per line, appended, flushed and fsynced per record
     photos/photo_NNNNN.png   lossless images, written to a temp file then os.replace'd
+    model/              the final model (COLMAP model + mesh.ply), written at the end
 
 A photo's image is on disk (renamed and the folder fsynced) before its log record is
 appended, so a record never points at a missing file. Reopening repairs what a kill can
@@ -13,8 +14,9 @@ leave: a torn last log line (dropped), temp files (deleted), photos with no reco
 (deleted: their step is redone). Missions that must redo whole steps mark each finished
 step with a `commit` record carrying the state to resume from; `open(..., rollback=True)`
 drops records (and photos) after the last commit, so a resumed step is not duplicated.
-`load_session_scene` turns a folder into an `ibr.scene.Scene` (one camera per photo, from
-its logged world pose). Poses are SE(2) (x, y, theta), metres and radians.
+`load_session_scene` turns a folder into an `ibr.scene.Scene` (`ibr.capture` reads the
+layout; `ibr.scene.load_scene` takes the folder too); `write_model` adds the final model.
+Poses are SE(2) (x, y, theta), metres and radians.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ibr.errors import InputError
-from robot.protocol import Photo, robot_camera
+from robot.protocol import Photo
 
 LOG, META, PHOTOS = "log.jsonl", "session.json", "photos"
 if TYPE_CHECKING:
@@ -198,6 +200,15 @@ class CaptureSession:
         if self._dies_at("photo"):
             os.kill(os.getpid(), signal.SIGKILL)
 
+    def write_model(self, cameras: list, mesh, points: np.ndarray | None = None,
+                    colors: np.ndarray | None = None) -> Path:
+        """Write the final model into `model/` (`ibr.export.write_model`: a COLMAP model of
+        `cameras`, named after their photos, with `points` (N, 3) and `colors`, and the mesh),
+        so that `load_scene` on this folder gives it."""
+        from ibr.export import write_model
+
+        return write_model(self.folder, cameras, mesh, points, colors)
+
     def commit(self, step: int, state: dict) -> dict:
         """Mark mission step `step` finished; `state` is what resuming after it needs."""
         return self.append("commit", step=step, state=state)
@@ -274,19 +285,11 @@ def _reconcile_photos(folder: Path, records: list[dict]) -> dict:
     return {k: v for k, v in (("temp_files", temps), ("orphan_photos", orphans)) if v}
 
 
-def load_session_scene(folder: str | Path) -> "Scene":
-    """The session as a `Scene`: a view per photo, its camera at the photo's logged world
-    `pose` (the odometry pose when none was logged) through the session's intrinsics and
-    `cam_from_robot`. Opening repairs the folder as `CaptureSession.open` does."""
-    from ibr.scene import Scene, View, read_image  # (trimesh is slow to import; writers don't need it)
+def load_session_scene(folder: str | Path, refine: bool = False) -> "Scene":
+    """The session as a `Scene` of every photo at its logged world `pose` (the odometry pose
+    when none was logged; `ibr.scene.load_capture` without the final model, which
+    `load_scene` prefers), after repairing the folder as `CaptureSession.open` does."""
+    from ibr.scene import load_capture  # (trimesh is slow to import; writers don't need it)
 
-    with CaptureSession.open(folder) as s:
-        views = []
-        for r in s.photos:
-            pose = np.asarray(r["pose"] if r.get("pose") is not None else r["odometry"], dtype=np.float64)
-            name = Path(r["file"]).stem
-            cam = robot_camera(pose, s.intrinsics, s.image_size, s.cam_from_robot, name=name)
-            views.append(View(cam, read_image(s.folder / r["file"], s.image_size), s.folder / r["file"]))
-        if not views:
-            raise SessionError(f"{s.folder}: the session has no photos yet")
-        return Scene(s.folder.name, views, root=s.folder, meta={"session": s.meta.get("meta", {})})
+    CaptureSession.open(folder).close()
+    return load_capture(folder, refine, use_model=False)

@@ -1,18 +1,17 @@
 """`ibrnav bench` figures for VuePlan (Blaer & Allen 2009).
 
 vueplan_phase2_s_per_nbv: seconds to compute one next-best view (every potential view's
-    count of visible boundary-unseen voxels, `count_visible` with its default Embree
-    occlusion queries) on the courtyard at 0.2 m
-    voxels (200 x 200 x 70 = 2.8 M voxels) after two scans from opposite corners, so that
-    >= 20k voxels are boundary unseen (the paper: ~10 min per NBV on Fort Jay's 2.7 M
-    voxels, 25k boundary unseen). Baseline: the straightforward per-ray reference (one
-    scalar voxel walk per (voxel, view) pair, `count_visible_per_ray`'s loop), timed on a
-    random sample of the same grid's pairs and scaled to all of them; ratio = baseline /
-    value. So that the sampled baseline can be checked, the reference is also run in full on a smaller grid (the same
-    scans in 1 m voxels) beside `count_visible` with both backends (Embree, numpy walk):
-    "small_grid_ratio" is the reference's time over Embree's and "small_grid_agree_*" the
-    share of views whose counts agree exactly (views stand on the voxel lattice, so rays
-    through voxel edges or corners, where tie-breaking differs, are common).
+    count of visible boundary-unseen voxels, `count_visible` with its default GL backend) on
+    the courtyard at 0.2 m voxels (200 x 200 x 70 = 2.8 M voxels) after two scans from
+    opposite corners, so that >= 20k voxels are boundary unseen (the paper: ~10 min per NBV
+    on Fort Jay's 2.7 M voxels, 25k boundary unseen). Baseline: the same count with the
+    Embree backend (the exact reference), in the same run; ratio = baseline / value.
+    "same_nbv" says whether both choose the same view, "nbv_score" is the Embree count of
+    the GL NBV over Embree's best; CPU seconds (all threads) beside the wall clock. So that
+    the backends can be checked against the straightforward per-ray walk, all are also run
+    in full on a smaller grid (the same scans in 1 m voxels): "small_grid_agree_*" is the
+    share of views whose counts agree exactly with it (views stand on the voxel lattice, so
+    rays through voxel edges or corners, where tie-breaking differs, are common).
 vueplan_phase1_s_500: Phase I seconds for 500 candidates on the courtyard. Baseline: a
     naive per-candidate shapely visibility test (each wall element's midpoint is visible
     when the sight line from the candidate is covered by the free space, one shapely call
@@ -29,10 +28,9 @@ import numpy as np
 import shapely
 
 from explore.floorplan import FloorPlan
-from explore.vueplan.voxel_grid import EMPTY, OCCUPIED, VoxelGrid, boundary_unseen, insert_scan
+from explore.vueplan.voxel_grid import OCCUPIED, VoxelGrid, boundary_unseen, insert_scan
 from explore.vueplan.phase1 import Phase1Config, plan_phase1, sample_candidates, wall_elements
-from explore.vueplan.phase2 import (FACE_NORMALS, Phase2Config, walk_one, count_visible, count_visible_per_ray,
-                                    ground_candidates)
+from explore.vueplan.phase2 import Phase2Config, count_visible, count_visible_per_ray, ground_candidates
 from explore.vueplan.scan_simulator import ScanConfig, simulate_scan
 from ibr.synthetic import make_world
 
@@ -58,18 +56,20 @@ def _small_grid_reference(scans) -> dict:
     """count_visible and the per-ray reference, both in full, on the same scans in 1 m voxels."""
     grid, views, cfg, _ = _phase2_state(1.0, 4, scans)
     out, counts = {}, {}
-    for name, fn in (("embree", lambda: count_visible(grid, views, cfg)),
+    for name, fn in (("gl", lambda: count_visible(grid, views, cfg)),
+                     ("embree", lambda: count_visible(grid, views, replace(cfg, ray_backend="embree"))),
                      ("walk", lambda: count_visible(grid, views, replace(cfg, ray_backend="walk"))),
                      ("per_ray", lambda: count_visible_per_ray(grid, views, cfg))):
         t = time.perf_counter()
         counts[name] = fn()
         out[name] = time.perf_counter() - t
     log.info(f"phase2 small grid {grid.shape} = {np.prod(grid.shape):,} voxels, "
-          f"{len(boundary_unseen(grid)[0]):,} boundary unseen, {len(views)} views: embree "
-          f"{out['embree']:.2f} s, numpy walk {out['walk']:.2f} s, per-ray {out['per_ray']:.2f} s")
-    return {"small_grid_voxels": int(np.prod(grid.shape)), "small_grid_s": out["embree"],
-            "small_grid_walk_s": out["walk"], "small_grid_per_ray_s": out["per_ray"],
-            "small_grid_ratio": out["per_ray"] / out["embree"],
+          f"{len(boundary_unseen(grid)[0]):,} boundary unseen, {len(views)} views: gl {out['gl']:.2f} s, "
+          f"embree {out['embree']:.2f} s, numpy walk {out['walk']:.2f} s, per-ray {out['per_ray']:.2f} s")
+    return {"small_grid_voxels": int(np.prod(grid.shape)), "small_grid_s": out["gl"],
+            "small_grid_embree_s": out["embree"], "small_grid_walk_s": out["walk"],
+            "small_grid_per_ray_s": out["per_ray"],
+            "small_grid_agree_gl": float(np.mean(counts["gl"] == counts["per_ray"])),
             "small_grid_agree_embree": float(np.mean(counts["embree"] == counts["per_ray"])),
             "small_grid_agree_walk": float(np.mean(counts["walk"] == counts["per_ray"]))}
 
@@ -79,39 +79,24 @@ def phase2_s_per_nbv() -> dict:
     grid, views, cfg, scans = _phase2_state(0.2, 5)
     log.info(f"phase2: two scans inserted in {time.perf_counter() - t:.1f} s")
     frontier = boundary_unseen(grid)
-    stats: dict = {}
-    t, cpu = time.perf_counter(), time.process_time()
-    counts = count_visible(grid, views, cfg, frontier, stats)
-    seconds, cpu_seconds = time.perf_counter() - t, time.process_time() - cpu
-    # the per-ray reference on a random sample of the same pairs, scaled to all of them
-    rng = np.random.default_rng(0)
-    idx, faces = frontier
-    u_c = grid.centers(idx)
-    blocked = grid.state != EMPTY
-    cos_max = np.cos(cfg.max_grazing_rad)
-    sample, walked = 0, 0
-    t = time.perf_counter()
-    while walked < 1500:
-        i, j = rng.integers(len(idx)), rng.integers(len(views))
-        d = views[j] - u_c[i]
-        r = np.linalg.norm(d)
-        sample += 1
-        if not (cfg.min_range_m <= r <= cfg.max_range_m):
-            continue
-        if max((FACE_NORMALS[k] @ d) / r for k in range(6) if faces[i, k]) < cos_max:
-            continue
-        walk_one(blocked, grid.to_voxel(u_c[[i]])[0], grid.to_voxel(views[[j]])[0])
-        walked += 1
-    per_ray = (time.perf_counter() - t) / walked
-    baseline = per_ray * stats["rays"]
-    log.info(f"phase2: grid {grid.shape} = {np.prod(grid.shape):,} voxels, "
-          f"{len(idx):,} boundary unseen, {int((grid.state == OCCUPIED).sum()):,} seen-occupied, "
-          f"{len(views)} views, {stats['rays']:,} rays tested (of {stats['pairs']:,} pairs): "
-          f"{seconds:.1f} s ({cpu_seconds:.1f} s CPU); best view sees {counts.max()}")
-    return {"value": seconds, "unit": "s/NBV", "baseline": baseline, "ratio": baseline / seconds,
-            "cpu_s": cpu_seconds, "voxels": int(np.prod(grid.shape)), "boundary_unseen": int(len(idx)),
+    runs = {}
+    for backend in ("gl", "embree"):
+        stats: dict = {}
+        t, cpu = time.perf_counter(), time.process_time()
+        counts = count_visible(grid, views, replace(cfg, ray_backend=backend), frontier, stats)
+        runs[backend] = (time.perf_counter() - t, time.process_time() - cpu, counts, stats)
+        log.info(f"phase2 {backend}: {runs[backend][0]:.1f} s ({runs[backend][1]:.1f} s CPU), "
+                 f"{stats['rays']:,} rays of {stats['pairs']:,} pairs; best view sees {counts.max()}")
+    (seconds, cpu_s, gl, gl_stats), (base_s, base_cpu, exact, _) = runs["gl"], runs["embree"]
+    log.info(f"phase2: grid {grid.shape} = {np.prod(grid.shape):,} voxels, {len(frontier[0]):,} boundary "
+             f"unseen, {int((grid.state == OCCUPIED).sum()):,} seen-occupied, {len(views)} views")
+    return {"value": seconds, "unit": "s/NBV", "baseline": base_s, "ratio": base_s / seconds,
+            "cpu_s": cpu_s, "baseline_cpu_s": base_cpu, "cpu_ratio": base_cpu / cpu_s,
+            "same_nbv": bool(np.argmax(gl) == np.argmax(exact)),
+            "nbv_score": float(exact[np.argmax(gl)] / exact.max()),
+            "voxels": int(np.prod(grid.shape)), "boundary_unseen": int(len(frontier[0])),
             "seen_occupied": int((grid.state == OCCUPIED).sum()), "views": int(len(views)),
-            "pairs": int(stats["pairs"]), "rays": int(stats["rays"]), "best_count": int(counts.max()),
+            "pairs": int(gl_stats["pairs"]), "rays": int(gl_stats["rays"]), "best_count": int(gl.max()),
             **_small_grid_reference(scans)}
 
 

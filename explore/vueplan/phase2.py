@@ -7,7 +7,7 @@ J. Field Robotics 2009, Sec. 3.2, Algorithm 2).
       U <- unseen voxels with a seen-empty neighbour        -> voxel_grid.boundary_unseen
       loop
         for all potential views p in P: count members of U visible from p  -> count_visible
-        if count(p) < threshold: break
+        if count(p) < threshold: break                     -> threshold = stop_fraction x |U|
         acquire scan at p with largest count; merge into C; update voxels; recompute U
       return C                                              -> plan_phase2
 
@@ -20,15 +20,20 @@ centre to p (Sec. 3.2.2-3.2.4)
     neighbour, the estimated surface normal) within the maximum grazing angle; this also
     prunes every view in the half-space behind the exposed faces,
   * crosses no seen-occupied and no unseen voxel (besides u itself).
-The occlusion test runs for all surviving (u, p) pairs at once, in chunks, either as one
-Embree occlusion query per ray against the mesh of blocked/open voxel faces
-(`voxel_occlusion.VoxelOccluder`, the default) or as a numpy voxel walk vectorised over
-the rays (`voxel_grid.segments_clear`); never a Python loop per ray. The two agree except
-for rays through a voxel edge or corner (ties), which Embree counts as blocked.
+The test runs for all (u, p) pairs at once, never a Python loop per ray, with one of three
+ray backends: "gl" (the default: range, grazing and a voxel walk with a distance-field skip
+for every pair in one compute pass, `voxel_visibility.GLVoxelVisibility`; on large grids a
+first pass ranks the views on a subsample of the boundary voxels and a second counts the
+best few exactly, see `Phase2Config.gl_exact_pairs`), "embree" (the
+exact reference: after the range / grazing pruning in numpy, one Embree occlusion query per
+ray against the mesh of blocked/open voxel faces, `voxel_occlusion.VoxelOccluder`) or
+"walk" (the numpy voxel walk vectorised over the rays, `voxel_grid.segments_clear`). They
+agree except for rays through a voxel edge or corner (ties), which they may break differently.
 """
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field
 from typing import Callable
@@ -41,6 +46,9 @@ from scipy.spatial import cKDTree
 from explore.vueplan.voxel_grid import (EMPTY, FACE_NORMALS, OCCUPIED, UNSEEN, VoxelGrid, blocker_distance,
                                 boundary_unseen, insert_scan, segments_clear)
 from explore.vueplan.voxel_occlusion import VoxelOccluder
+from explore.vueplan.voxel_visibility import GLVoxelVisibility
+
+RAY_BACKENDS = ("gl", "embree", "walk")
 
 
 @dataclass(frozen=True)
@@ -53,10 +61,12 @@ class Phase2Config:
     """Scanner maximum range (metres)."""
     max_grazing_rad: float = np.deg2rad(70.0)
     """Largest angle between a ray and the exposed face's normal."""
-    threshold: int = 50
-    """Stop when the best view sees fewer boundary-unseen voxels than this."""
-    max_views: int = 10
-    """Stop after this many next-best views at most."""
+    stop_fraction: float = 0.02
+    """Stop when the best view sees fewer boundary-unseen voxels than this fraction of the
+    boundary-unseen voxels (the paper's threshold, relative so that it does not depend on
+    the grid's size): the unseen boundary in sight of the potential views is exhausted."""
+    max_views: int = 30
+    """Stop after this many next-best views at most (a guard; the stop above ends a run)."""
     sensor_height_m: float = 1.6
     """Scanner height above the ground plane (metres)."""
     candidate_stride: int = 1
@@ -65,13 +75,29 @@ class Phase2Config:
     """Potential views stand at least this far from the 2-D map's obstacles (metres)."""
     pairs_per_chunk: int = 1_000_000
     """(voxel, view) rays tested per vectorised batch (memory bound)."""
-    ray_backend: str = "embree"
-    """Occlusion test: "embree" (compiled ray queries against the blocked voxel faces) or
-    "walk" (numpy Amanatides-Woo walk with a distance-field skip)."""
+    ray_backend: str = "gl"
+    """Visibility test: "gl" (one compute pass over all pairs, voxel walk), "embree" (exact
+    reference: compiled ray queries against the blocked voxel faces) or "walk" (numpy
+    Amanatides-Woo walk with a distance-field skip)."""
+
+    gl_exact_pairs: int = 4_000_000
+    """gl backend: up to this many (voxel, view) pairs every view is counted exactly. Above
+    it, the views are first ranked on every gl_estimate_stride-th boundary voxel (the count
+    scaled up), and the gl_refine_views best of them counted exactly on all voxels; the NBV
+    is the best of those (the other views keep their estimates)."""
+    gl_estimate_stride: int = 8
+    """gl backend: boundary-voxel subsample of the ranking pass (a stride in `boundary_unseen`
+    order, which runs through the grid in x, y, z order, so the subsample is spread evenly)."""
+    gl_refine_views: int = 32
+    """gl backend: views re-counted exactly after the ranking pass."""
 
     def __post_init__(self):
-        if self.ray_backend not in ("embree", "walk"):
-            raise ValueError(f"ray_backend must be 'embree' or 'walk', got {self.ray_backend!r}")
+        if min(self.gl_exact_pairs, self.gl_estimate_stride, self.gl_refine_views) < 1:
+            raise ValueError("gl_exact_pairs, gl_estimate_stride and gl_refine_views must be >= 1")
+        if self.ray_backend not in RAY_BACKENDS:
+            raise ValueError(f"ray_backend must be one of {RAY_BACKENDS}, got {self.ray_backend!r}")
+        if not 0 <= self.stop_fraction < 1:
+            raise ValueError(f"stop_fraction must be in [0, 1), got {self.stop_fraction}")
 
 
 def ground_candidates(grid: VoxelGrid, free_space: shapely.Geometry, cfg: Phase2Config) -> np.ndarray:
@@ -84,6 +110,20 @@ def ground_candidates(grid: VoxelGrid, free_space: shapely.Geometry, cfg: Phase2
     region = free_space.buffer(-cfg.candidate_clearance_m) if cfg.candidate_clearance_m > 0 else free_space
     xy = xy[shapely.contains_xy(region, xy[:, 0], xy[:, 1])]
     return np.c_[xy, np.full(len(xy), cfg.sensor_height_m)]
+
+
+def reachable_views(views: np.ndarray, free_space: shapely.Geometry, starts: np.ndarray,
+                    clearance_m: float) -> np.ndarray:
+    """(P,) bool: the potential views (P, 3) in a part of the free space (shrunk by
+    clearance_m, as `ground_candidates`) that holds one of the start positions (S, 2) (the
+    Phase I views the robot drives between); the other parts cannot be reached."""
+    region = free_space.buffer(-clearance_m) if clearance_m > 0 else free_space
+    parts = [g for g in getattr(region, "geoms", [region]) if not g.is_empty]
+    keep = np.zeros(len(views), bool)
+    for part in parts:
+        if shapely.contains_xy(part.buffer(1e-9), starts[:, 0], starts[:, 1]).any():
+            keep |= shapely.contains_xy(part, views[:, 0], views[:, 1])
+    return keep
 
 
 def usable_views(grid: VoxelGrid, views: np.ndarray) -> np.ndarray:
@@ -122,6 +162,9 @@ def count_visible(grid: VoxelGrid, views: np.ndarray, cfg: Phase2Config,
     if len(idx) == 0 or len(ok_view) == 0:
         return counts
     blocked = grid.state != EMPTY  # occupied and unseen both block
+    if cfg.ray_backend == "gl":
+        counts[ok_view] = _count_gl(grid, blocked, idx, faces, views[ok_view], cfg, stats)
+        return counts
     if cfg.ray_backend == "embree":
         occluder = VoxelOccluder(blocked)
         clear_fn = occluder.clear
@@ -147,6 +190,41 @@ def count_visible(grid: VoxelGrid, views: np.ndarray, cfg: Phase2Config,
         clear = clear_fn(idx[s + ui] + 0.5, v_vox[pj])  # voxel coordinates
         counts[ok_view] += np.bincount(pj[clear], minlength=len(v_c))
     return counts
+
+
+def _count_gl(grid: VoxelGrid, blocked: np.ndarray, idx: np.ndarray, faces: np.ndarray, views: np.ndarray,
+              cfg: Phase2Config, stats: dict | None) -> np.ndarray:
+    """`count_visible` on the GL pass: exact for every view up to cfg.gl_exact_pairs pairs,
+    else ranked on a voxel subsample and exact for the best cfg.gl_refine_views views."""
+    gl = _gl_counter()
+    dist = blocker_distance(blocked)
+    v_vox = grid.to_voxel(views)
+    args = (grid.voxel_m, cfg.min_range_m, cfg.max_range_m, np.cos(cfg.max_grazing_rad))
+    passes = []
+
+    def run(sel_voxels, sel_views):
+        c, rays = gl.count(dist, idx[sel_voxels], faces[sel_voxels], v_vox[sel_views], *args)
+        passes.append((len(idx[sel_voxels]) * len(v_vox[sel_views]), rays))
+        return c
+
+    every = slice(None)
+    if len(idx) * len(views) <= cfg.gl_exact_pairs or len(views) <= cfg.gl_refine_views:
+        counts = run(every, every)
+    else:
+        stride = cfg.gl_estimate_stride
+        counts = run(slice(None, None, stride), every) * stride
+        top = np.argsort(-counts, kind="stable")[:cfg.gl_refine_views]
+        counts[top] = run(every, top)
+    if stats is not None:
+        stats["pairs"] = stats.get("pairs", 0) + sum(p for p, _ in passes)
+        stats["rays"] = stats.get("rays", 0) + sum(r for _, r in passes)
+    return counts
+
+
+@functools.cache
+def _gl_counter() -> GLVoxelVisibility:
+    """One compiled program per process (on the shared GL context)."""
+    return GLVoxelVisibility()
 
 
 def count_visible_per_ray(grid: VoxelGrid, views: np.ndarray, cfg: Phase2Config) -> np.ndarray:
@@ -210,6 +288,36 @@ class SurfaceCoverage:
         self.covered = np.zeros(n, bool)
         self.tol_m = tol_m
 
+    def in_sight(self, mesh: trimesh.Trimesh, views: np.ndarray, min_range_m: float, max_range_m: float,
+                 views_per_batch: int = 64) -> np.ndarray:
+        """(n,) bool: the samples a scanner at one of `views` (P, 3) could return, i.e. within
+        [min_range_m, max_range_m] of it and with a clear line of sight on the true `mesh`
+        (Embree occlusion queries; the ray stops tol_m short of the sample, the distance
+        at which a scan point counts as covering it). The covered fraction cannot exceed
+        the mean of this over views the robot can reach."""
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+
+        scene = rtcore_scene.EmbreeScene(robust=True)
+        TriangleMesh(scene=scene, vertices=np.asarray(mesh.vertices, np.float32),
+                     indices=np.asarray(mesh.faces, np.int32))
+        seen = np.zeros(len(self.samples), bool)
+        for s in range(0, len(views), views_per_batch):
+            todo = np.flatnonzero(~seen)
+            if len(todo) == 0:
+                break
+            v = views[s:s + views_per_batch]
+            d = self.samples[todo][None] - v[:, None]          # (b, t, 3)
+            r = np.linalg.norm(d, axis=2)
+            bi, ti = np.nonzero((r >= min_range_m) & (r <= max_range_m) & (r > self.tol_m))
+            if len(bi) == 0:
+                continue
+            u = d[bi, ti] / r[bi, ti, None]
+            hit = scene.run(v[bi].astype(np.float32), u.astype(np.float32),
+                            dists=(r[bi, ti] - self.tol_m).astype(np.float32), query="OCCLUDED")
+            seen[todo[np.unique(ti[hit < 0])]] = True
+        return seen
+
     def add(self, points: np.ndarray) -> float:
         """Mark samples near the scan points (N, 3); returns the covered fraction."""
         if len(points):
@@ -237,11 +345,14 @@ class Phase2Row:
     surface_coverage: float
     seconds: float
     nbv: np.ndarray | None = field(default=None, repr=False)
+    stop: str = ""
+    """On the last row: "exhausted" (the best view sees fewer than stop_fraction of the
+    boundary) or "max_views" (the guard); empty on the others."""
 
     def as_json(self) -> dict:
         return {"seen_occupied": self.seen_occupied, "unseen": self.unseen,
                 "boundary_unseen": self.boundary_unseen, "visible_to_nbv": self.visible_to_nbv,
-                "surface_coverage": self.surface_coverage, "seconds": self.seconds}
+                "surface_coverage": self.surface_coverage, "seconds": self.seconds, "stop": self.stop}
 
 
 def plan_phase2(grid: VoxelGrid, views: np.ndarray, acquire: Callable[[np.ndarray], object],
@@ -253,7 +364,8 @@ def plan_phase2(grid: VoxelGrid, views: np.ndarray, acquire: Callable[[np.ndarra
     reports the current true-surface coverage. on_row(row, counts) is called per row
     (row.nbv is None on the last row: no view is acquired).
     Returns one row for the state after Phase I and after each NBV; the last row's
-    visible_to_nbv is the count that fell below the threshold (or max_views was hit)."""
+    visible_to_nbv is the count that fell below stop_fraction of its boundary-unseen voxels
+    (or none is visible at all), or max_views was hit; its `stop` says which."""
     rows = []
     while True:
         t = time.perf_counter()
@@ -265,7 +377,11 @@ def plan_phase2(grid: VoxelGrid, views: np.ndarray, acquire: Callable[[np.ndarra
                         int(counts[best]) if len(counts) else 0, coverage(),
                         time.perf_counter() - t, views[best] if len(counts) else None)
         rows.append(row)
-        stop = row.visible_to_nbv < cfg.threshold or len(rows) > cfg.max_views
+        if row.visible_to_nbv == 0 or row.visible_to_nbv < cfg.stop_fraction * row.boundary_unseen:
+            row.stop = "exhausted"
+        elif len(rows) > cfg.max_views:
+            row.stop = "max_views"
+        stop = bool(row.stop)
         if stop:
             row.nbv = None
         if on_row is not None:
@@ -276,5 +392,5 @@ def plan_phase2(grid: VoxelGrid, views: np.ndarray, acquire: Callable[[np.ndarra
         insert_scan(grid, scan.origin, scan.points, scan.no_return, scan.max_range_m)
 
 
-__all__ = ["EMPTY", "OCCUPIED", "UNSEEN", "Phase2Config", "Phase2Row", "SurfaceCoverage",
-           "count_visible", "count_visible_per_ray", "ground_candidates", "plan_phase2"]
+__all__ = ["EMPTY", "OCCUPIED", "UNSEEN", "RAY_BACKENDS", "Phase2Config", "Phase2Row", "SurfaceCoverage",
+           "count_visible", "count_visible_per_ray", "ground_candidates", "plan_phase2", "reachable_views"]

@@ -11,11 +11,11 @@ The reconstruction's frame and scale are arbitrary (COLMAP's), not metres.
 
 from __future__ import annotations
 
-import contextlib
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
+from ibr.colmap import colmap_errors_only
 from ibr.errors import InputError
 from ibr.scene import IMAGE_SUFFIXES, Scene, load_colmap
 
@@ -32,20 +32,6 @@ class SfmConfig:
     """All photos share one camera (intrinsics estimated once)."""
     min_registered: int = 3
     """Fewest photos the largest reconstruction must register."""
-
-
-@contextlib.contextmanager
-def colmap_errors_only():
-    """Silence COLMAP's per-image INFO and WARNING log lines (hundreds per run, on stderr,
-    where ibrnav prints its own progress) for the duration; errors still show."""
-    import pycolmap
-
-    level = pycolmap.logging.minloglevel
-    pycolmap.logging.minloglevel = 2  # glog's ERROR
-    try:
-        yield
-    finally:
-        pycolmap.logging.minloglevel = level
 
 
 def reconstruct(folder: str | Path, cfg: SfmConfig = SfmConfig(), overwrite: bool = False) -> Path:

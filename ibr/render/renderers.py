@@ -14,7 +14,9 @@ from ibr.render.nearest_view import NearestViewRenderer
 from ibr.render.ulr import UlrConfig, UlrRenderer
 from ibr.scene import Scene
 
-METHODS = ("ulr", "nearest", "lightfield", "lightfield_local")
+METHODS = ("ulr", "ulr_pixel", "nearest", "lightfield", "lightfield_local")
+"""ulr: unstructured lumigraph rendering with Buehler et al.'s sparse blending field (fast);
+ulr_pixel (CLI ulr-pixel): the same weights evaluated at every pixel (the quality reference)."""
 PROXIES = ("photos", "dense", "mesh")
 
 
@@ -27,6 +29,8 @@ def make_renderers(sources: Scene, mesh, methods, k: int) -> dict:
     depths = render_depth_maps(mesh, sources.cameras)
     makers = {
         "ulr": lambda: UlrRenderer(sources, mesh, config=UlrConfig(k=k), source_depths=depths),
+        "ulr_pixel": lambda: UlrRenderer(sources, mesh, config=UlrConfig(k=k, blending="pixel"),
+                                         source_depths=depths),
         "nearest": lambda: NearestViewRenderer(sources, mesh, source_depths=depths),
         "lightfield": lambda: LightFieldRenderer(sources, mesh),
         "lightfield_local": lambda: LightFieldRenderer(

@@ -22,6 +22,15 @@ For every pixel of the virtual camera C (centre c):
 
 Steps 2-5 run in a fragment shader over a texture array (`ibr/shaders/ulr.glsl`);
 `ulr_blend_numpy` is the same blend in numpy, the reference for tests and benchmarks.
+
+Two ways to get the weights (`UlrConfig.blending`): "pixel" evaluates steps 2-4 at every
+pixel (the quality reference); "field" (the default, Buehler et al. Sec. 5) evaluates them
+at a sparse set of samples -- the visible proxy vertices, the epipoles and a coarse grid --
+triangulates them and lets the rasteriser interpolate the weights (`blending_field`); per
+pixel only the sources the field names are looked up, with the visibility test, and
+renormalised (a pixel none of them sees is left to hole filling, as in Buehler et al.'s
+real-time renderer, which has no per-pixel pass). Hole filling (proxy depth and uncovered colours) runs on the GPU
+(`hole_filling.GLPushPull`).
 """
 
 from __future__ import annotations
@@ -35,11 +44,17 @@ import trimesh
 from ibr.camera import Camera
 from ibr.render.depth_maps import render_depth_maps
 from ibr.gl import load_program, shared_context
-from ibr.render.hole_filling import push_pull
+from ibr.render.blending_field import (angle_penalty, blending_field, field_samples, k_nearest_weights,
+                                      resolution_penalty, source_candidates, triangle_weights, triangulate)
+from ibr.render.hole_filling import GLPushPull, push_pull
 from ibr.scene import Scene
-from ibr.source_views import SourceViews, project_with
+from ibr.source_views import SourceViews
 
 MAX_K = 8
+BLENDINGS = ("field", "pixel")
+
+__all__ = ["UlrConfig", "UlrFrame", "UlrRenderer", "angle_penalty", "bilinear", "fill_depth_holes",
+           "k_nearest_weights", "resolution_penalty", "source_candidates", "ulr_blend_numpy"]
 
 
 @dataclass(frozen=True)
@@ -62,6 +77,20 @@ class UlrConfig:
     """Near clipping distance of the proxy pass (metres)."""
     far: float = 1000.0
     """Far clipping distance of the proxy pass (metres)."""
+    blending: str = "field"
+    """"field": the blending field at sparse samples, rasterised (fast); "pixel": every pixel."""
+    field_grid_cells: int = 32
+    """Field grid: cells across the image's longer side (a fraction of the image, so the
+    same for every scene)."""
+    field_vertex_cells: int = 128
+    """Proxy vertices kept as field samples: at most one per cell of 1/field_vertex_cells of
+    the image's longer side."""
+
+    def __post_init__(self):
+        if self.blending not in BLENDINGS:
+            raise ValueError(f"blending must be one of {BLENDINGS}, got {self.blending!r}")
+        if self.field_grid_cells < 1 or self.field_vertex_cells < 1:
+            raise ValueError("field_grid_cells and field_vertex_cells must be >= 1")
 
 
 @dataclass
@@ -78,42 +107,6 @@ class UlrFrame:
 
 
 # --- the blend in numpy (reference) --------------------------------------------------------
-def angle_penalty(P: np.ndarray, eye: np.ndarray, centres: np.ndarray) -> np.ndarray:
-    """(M, N) angle (radians) at surface points P (M, 3) between the rays to the virtual
-    centre `eye` (3,) and to each source centre (N, 3)."""
-    a = eye - P
-    b = centres[None] - P[:, None]
-    cos = np.einsum("mj,mnj->mn", a, b) / (np.linalg.norm(a, axis=1)[:, None] * np.linalg.norm(b, axis=2))
-    return np.arccos(np.clip(cos, -1.0, 1.0))
-
-
-def resolution_penalty(P: np.ndarray, eye: np.ndarray, centres: np.ndarray) -> np.ndarray:
-    """(M, N) relative extra distance max(0, (|P - c_i| - |P - c|) / |P - c|)."""
-    d_eye = np.linalg.norm(eye - P, axis=1)[:, None]
-    return np.maximum(0.0, (np.linalg.norm(centres[None] - P[:, None], axis=2) - d_eye) / d_eye)
-
-
-def k_nearest_weights(penalty: np.ndarray, k: int, eps: float) -> np.ndarray:
-    """(M, N) normalised blending weights from penalties (M, N) (inf = not a candidate):
-    the k smallest get (1 - p / thresh) / (p + eps), thresh = the (k+1)-th smallest (or
-    1.5 x the largest finite + 1e-3 when there are at most k candidates); the rest get 0."""
-    M, N = penalty.shape
-    order = np.argsort(penalty, axis=1)
-    p_sorted = np.take_along_axis(penalty, order, axis=1)
-    n_valid = np.isfinite(p_sorted).sum(axis=1)
-    n = np.minimum(n_valid, k)
-    last = p_sorted[np.arange(M), np.maximum(n - 1, 0)]
-    kth = p_sorted[:, k] if N > k else np.full(M, np.inf)
-    thresh = np.where(n_valid > k, kth, last * 1.5 + 1e-3)
-    rank = np.empty_like(order)
-    np.put_along_axis(rank, order, np.arange(N)[None].repeat(M, 0), axis=1)
-    with np.errstate(invalid="ignore"):
-        w = (1.0 - penalty / thresh[:, None]) / (penalty + eps)
-    w = np.where((rank < n[:, None]) & np.isfinite(penalty), w, 0.0)
-    s = w.sum(axis=1, keepdims=True)
-    return np.divide(w, s, out=np.zeros_like(w), where=s > 0)
-
-
 def bilinear(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
     """Bilinear samples (M, 3) float of image (H, W, 3) at pixels uv (M, 2), clamped at the edges."""
     H, W = image.shape[:2]
@@ -124,24 +117,6 @@ def bilinear(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
     im = image.astype(np.float64)
     return ((1 - fu) * (1 - fv) * im[v0, u0] + fu * (1 - fv) * im[v0, u0 + 1]
             + (1 - fu) * fv * im[v0 + 1, u0] + fu * fv * im[v0 + 1, u0 + 1])
-
-
-def source_candidates(P: np.ndarray, check_visibility: np.ndarray, matrices: np.ndarray,
-                      depths: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
-    """Field-of-view and visibility tests of points P (M, 3) in N sources (matrices (N, 4, 4),
-    depth maps (N, H, W)). Returns candidate (M, N) bool and pixels (M, N, 2)."""
-    N, H, W = depths.shape
-    uv = np.empty((len(P), N, 2))
-    ok = np.zeros((len(P), N), bool)
-    for i in range(N):  # loop over the few sources; every pixel at once
-        s, z = project_with(matrices[i], P)
-        inside = (z > 0) & np.all(s >= -0.5, axis=1) & (s[:, 0] < W - 0.5) & (s[:, 1] < H - 0.5)
-        ij = np.clip(np.floor(np.nan_to_num(s) + 0.5).astype(int), 0, [W - 1, H - 1])
-        d = depths[i, ij[:, 1], ij[:, 0]]
-        visible = (d > 0) & (z <= d * (1.0 + tolerance))
-        ok[:, i] = inside & (visible | ~check_visibility)
-        uv[:, i] = s
-    return ok, uv
 
 
 def ulr_blend_numpy(P: np.ndarray, check_visibility: np.ndarray, eye: np.ndarray,
@@ -173,7 +148,8 @@ class UlrRenderer:
     """Unstructured lumigraph renderer of a scene's photos over a proxy mesh.
 
     scene: the posed source photos (all one size); proxy_mesh: the geometric proxy (world
-    metres); ctx: GL context (the shared one by default); k: sources blended per pixel."""
+    metres); ctx: GL context (the shared one by default); k: sources blended per pixel;
+    config.blending: "field" (sparse blending field, fast) or "pixel" (every pixel)."""
 
     def __init__(self, scene: Scene, proxy_mesh: trimesh.Trimesh, ctx: moderngl.Context | None = None,
                  k: int = 4, config: UlrConfig | None = None, source_depths: np.ndarray | None = None):
@@ -187,25 +163,37 @@ class UlrRenderer:
                               else source_depths)
         self.sources = SourceViews(self.ctx, cams, np.stack([v.image for v in scene.views]),
                                    self.source_depths)
+        self.slots = min(3 * self.cfg.k, len(cams))  # sources a field triangle can name
         self.depth_prog = load_program(self.ctx, "ulr", {"PASS": 0, "K": self.cfg.k})
         self.blend_prog = load_program(self.ctx, "ulr", {"PASS": 1, "K": self.cfg.k,
                                                          "EPS": f"{self.cfg.eps:.8f}"})
-        vertices = np.asarray(proxy_mesh.vertices, "f4")
-        self.vbo = self.ctx.buffer(vertices.tobytes())
+        self.field_prog = load_program(self.ctx, "ulr", {"PASS": 2, "K": self.cfg.k, "SLOTS": self.slots,
+                                                         "EPS": f"{self.cfg.eps:.8f}"})
+        self.vertices = np.asarray(proxy_mesh.vertices, np.float64)
+        self.vbo = self.ctx.buffer(self.vertices.astype("f4").tobytes())
         self.ibo = self.ctx.buffer(np.asarray(proxy_mesh.faces, "i4").tobytes())
         self.depth_vao = self.ctx.vertex_array(self.depth_prog, [(self.vbo, "3f4", "in_position")], self.ibo)
         self.blend_vao = self.ctx.vertex_array(self.blend_prog, [])
+        self._field_bufs: list = []   # [vbo, ssbo, vao] of the last field, reused while large enough
         self._fbos: dict = {}
+        self._fillers: dict = {}
 
     def _targets(self, W: int, H: int):
         if (W, H) not in self._fbos:
             depth = self.ctx.framebuffer([self.ctx.texture((W, H), 1, dtype="f4")],
                                          self.ctx.depth_renderbuffer((W, H)))
+            depth.color_attachments[0].filter = (moderngl.NEAREST, moderngl.NEAREST)
             color = self.ctx.framebuffer([self.ctx.texture((W, H), 4, dtype="f1")])
+            color.color_attachments[0].filter = (moderngl.NEAREST, moderngl.NEAREST)
             view_depth = self.ctx.texture((W, H), 1, dtype="f4")
             view_depth.filter = (moderngl.NEAREST, moderngl.NEAREST)
             self._fbos[W, H] = (depth, color, view_depth)
         return self._fbos[W, H]
+
+    def _filler(self, W: int, H: int, depth: bool) -> GLPushPull:
+        if (W, H, depth) not in self._fillers:
+            self._fillers[W, H, depth] = GLPushPull(self.ctx, (W, H), depth)
+        return self._fillers[W, H, depth]
 
     def proxy_depth(self, camera: Camera) -> np.ndarray:
         """(H, W) float32 camera-z of the proxy seen by `camera` (0 = no proxy)."""
@@ -221,38 +209,92 @@ class UlrRenderer:
         data = fbo.read(components=1, attachment=0, dtype="f4")
         return np.frombuffer(data, "f4").reshape(camera.height, camera.width).copy()
 
-    def blend(self, camera: Camera, view_depth: np.ndarray, only_source: int = -1) -> np.ndarray:
-        """(H, W, 4) uint8 blended colours (alpha 255 where some source contributed) of the
-        surface points given by `view_depth` (camera-z; negative = hole-filled)."""
-        _, fbo, tex = self._targets(camera.width, camera.height)
-        tex.write(np.ascontiguousarray(view_depth, "f4").tobytes())
+    def _draw(self, camera: Camera, depth_tex: moderngl.Texture, field: np.ndarray | None = None,
+              uv: np.ndarray | None = None, only_source: int = -1) -> np.ndarray:
+        """Blend into the colour target: the per-pixel pass, or the field pass when `field`
+        (T, slots, 4) and the triangles' corner pixels `uv` (3T, 2) are given. Returns the
+        (H, W, 4) uint8 read-back (alpha 255 where some source contributed)."""
+        _, fbo, _ = self._targets(camera.width, camera.height)
         fbo.use()
         fbo.viewport = (0, 0, camera.width, camera.height)
         fbo.clear(0.0, 0.0, 0.0, 0.0)
         self.ctx.disable(moderngl.DEPTH_TEST)
-        prog = self.blend_prog
+        prog = self.blend_prog if field is None else self.field_prog
         self.sources.bind(prog)
-        tex.use(2)
+        depth_tex.use(2)
         prog["u_view_depth"] = 2
         prog["u_world_from_cam"].write(camera.world_from_cam.T.astype("f4").tobytes())
         prog["u_K_inv"].write(np.linalg.inv(camera.K).T.astype("f4").tobytes())
-        prog["u_eye"] = tuple(camera.center)
-        prog["u_only_source"] = only_source
-        prog["u_alpha"], prog["u_beta"] = self.cfg.alpha, self.cfg.beta
-        prog["u_visibility_tolerance"] = self.cfg.visibility_tolerance
-        self.blend_vao.render(moderngl.TRIANGLES, vertices=3)
+        uniforms = {"u_eye": tuple(camera.center), "u_only_source": only_source, "u_alpha": self.cfg.alpha,
+                    "u_beta": self.cfg.beta, "u_visibility_tolerance": self.cfg.visibility_tolerance}
+        for name, value in uniforms.items():
+            if name in prog:  # the compiler drops the ones a pass does not use
+                prog[name] = value
+        if field is None:
+            self.blend_vao.render(moderngl.TRIANGLES, vertices=3)
+        else:
+            vao = self._field_vao(uv.astype("f4"), field)
+            prog["u_view_size"] = (float(camera.width), float(camera.height))
+            vao.render(moderngl.TRIANGLES, vertices=len(uv))
         return np.frombuffer(fbo.read(components=4), np.uint8).reshape(camera.height, camera.width, 4).copy()
 
+    def _field_vao(self, uv: np.ndarray, field: np.ndarray) -> moderngl.VertexArray:
+        """Upload the field's triangle corners and weights (buffers grow, never shrink)."""
+        if not self._field_bufs or self._field_bufs[0].size < uv.nbytes or self._field_bufs[1].size < field.nbytes:
+            for obj in self._field_bufs:
+                obj.release()
+            vbo = self.ctx.buffer(reserve=max(uv.nbytes, 8) * 2)
+            ssbo = self.ctx.buffer(reserve=max(field.nbytes, 16) * 2)
+            self._field_bufs = [vbo, ssbo, self.ctx.vertex_array(self.field_prog, [(vbo, "2f4", "in_uv")])]
+        vbo, ssbo, vao = self._field_bufs
+        vbo.write(uv.tobytes())
+        ssbo.write(np.ascontiguousarray(field, "f4").tobytes())
+        ssbo.bind_to_storage_buffer(2)
+        return vao
+
+    def field(self, camera: Camera, view_depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The blending field of `camera` over its (hole-filled) proxy depth: the triangles'
+        corner pixels (3T, 2) and per-triangle (T, slots, 4) weights (`blending_field`)."""
+        c = self.cfg
+        H, W = view_depth.shape
+        samples = field_samples(camera, view_depth, self.vertices, self.sources.centres, c.field_grid_cells,
+                                max(W, H) / c.field_vertex_cells, c.visibility_tolerance)
+        weights = np.zeros((len(samples.uv), len(self.sources)))
+        has = samples.has_surface
+        weights[has] = blending_field(samples.P[has], samples.on_proxy[has], camera.center,
+                                      self.sources.matrices, self.sources.centres, self.source_depths,
+                                      c.k, c.alpha, c.beta, c.eps, c.visibility_tolerance)
+        tri = triangulate(samples.uv)
+        return samples.uv[tri.ravel()], triangle_weights(tri, weights, self.slots)
+
+    def blend(self, camera: Camera, view_depth: np.ndarray, only_source: int = -1) -> np.ndarray:
+        """(H, W, 4) uint8 per-pixel blended colours (alpha 255 where some source contributed)
+        of the surface points given by `view_depth` (camera-z; negative = hole-filled)."""
+        _, _, tex = self._targets(camera.width, camera.height)
+        tex.write(np.ascontiguousarray(view_depth, "f4").tobytes())
+        return self._draw(camera, tex, only_source=only_source)
+
     def render_frame(self, camera: Camera, only_source: int = -1) -> UlrFrame:
-        """Render `camera`; see `UlrFrame`."""
+        """Render `camera`; see `UlrFrame`. Proxy holes and uncovered pixels are filled on
+        the GPU (push-pull); only the proxy depth and the colours are read back."""
+        W, H = camera.width, camera.height
         depth = self.proxy_depth(camera)
-        view_depth = fill_depth_holes(depth) if self.cfg.fill_holes else depth
-        rgba = self.blend(camera, view_depth, only_source)
+        depth_tex = self._targets(W, H)[0].color_attachments[0]
+        view_depth = depth
+        if self.cfg.fill_holes and (depth > 0).any() and not (depth > 0).all():
+            depth_tex = self._filler(W, H, True).fill(depth_tex)
+            view_depth = np.frombuffer(depth_tex.read(), "f4").reshape(H, W)
+        if self.cfg.blending == "field" and only_source < 0 and (view_depth != 0).any():
+            uv, weights = self.field(camera, view_depth)
+            rgba = self._draw(camera, depth_tex, weights, uv)
+        else:
+            rgba = self._draw(camera, depth_tex, only_source=only_source)
         blended = rgba[..., 3] > 127
         covered = blended & (depth > 0)
         image = rgba[..., :3]
         if self.cfg.fill_holes and blended.any() and not blended.all():
-            image = np.clip(np.round(push_pull(image.astype(np.float64), blended)), 0, 255).astype(np.uint8)
+            out = self._filler(W, H, False).fill(self._targets(W, H)[1].color_attachments[0])
+            image = np.frombuffer(out.read(), np.uint8).reshape(H, W, 4)[..., :3].copy()
         return UlrFrame(image, covered, depth, ~covered)
 
     def render(self, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
@@ -265,8 +307,12 @@ class UlrRenderer:
         one leaves moderngl pointing at a dead framebuffer)."""
         self.ctx.detect_framebuffer(0).use()
         self.sources.release()
-        for obj in (self.vbo, self.ibo, self.depth_vao, self.blend_vao):
+        for obj in (self.vbo, self.ibo, self.depth_vao, self.blend_vao, *self._field_bufs):
+            obj.release()
+        for obj in (self.depth_prog, self.blend_prog, self.field_prog):
             obj.release()
         for fbos in self._fbos.values():
             for f in fbos:
                 f.release()
+        for filler in self._fillers.values():
+            filler.release()

@@ -5,10 +5,10 @@ JSON `{"figures": {NAME: {"value", "unit", "baseline", "ratio", ...}}}` is print
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 from pathlib import Path
 
+from ibrnav import jsonout
 from ibrnav.bench import UnknownFigureError, run_figures
 
 log = logging.getLogger(__name__)
@@ -20,7 +20,7 @@ def run(args: argparse.Namespace) -> int:
     except UnknownFigureError as e:
         log.error("%s", e.args[0])
         return 2
-    text = json.dumps(out, indent=2)
+    text = jsonout.dumps(out)
     if args.json:
         Path(args.json).write_text(text + "\n")
     print(text)

@@ -56,6 +56,7 @@ def run(args: argparse.Namespace) -> int:
     import rerun as rr
 
     from robot import viz as robot_viz
+    from ibr.progress import counter
     from robot.mission import viz as mission_viz
     from robot.mission.coverage import CoverageConfig, CoverageTracker
     from robot.mission.journal import SessionJournal
@@ -85,11 +86,15 @@ def run(args: argparse.Namespace) -> int:
         coverage = CoverageTracker(world.mesh, CoverageConfig()) if sim else None
         obs = RecordingObserver(robot, session, True, coverage)
         obs.restore(session.records)
+        obs.progress = counter(args.photos, "photos", log, initial=obs.n_model)
         if not any(r["kind"] == "start" for r in session.records):
             session.append("start", start_pose=start, seed=args.seed)
         result = run_mission(robot, start, min(args.random_photos, args.photos), args.photos,
                              mission_config(args), np.random.default_rng(args.seed), obs, random_config(args),
                              SessionJournal(session, robot, replayable=sim))
+        obs.progress.close()
+        final = result.robot_map
+        session.write_model([final.cameras[i] for i in sorted(final.cameras)], final.mesh, final.points, final.colors)
         session.commit(sum(r["kind"] == "commit" for r in session.records),
                        {"stage": "finished", "stopped_because": result.stopped_because,
                         "stop_reason": result.stop_reason, "path_m": result.path_m})

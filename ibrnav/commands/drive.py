@@ -25,6 +25,7 @@ def run(args: argparse.Namespace) -> int:
 
     from explore import viz as explore_viz
     from ibr import viz as ibr_viz
+    from ibr.progress import progress
     from ibr.synthetic import loop_route, make_world
     from localization import viz as loc_viz
     from robot import viz as robot_viz
@@ -59,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
         robot_viz.log_robot_body(getattr(getattr(robot, "config", None), "radius_m", 0.15))
         t0 = time.perf_counter()
         n_bumps, n_legs, leg, photo = 0, 0, None, None
-        for leg, photo in legs:
+        for leg, photo in progress(legs, desc="legs", logger=log):
             rr.set_time("step", sequence=leg.index)
             rr.set_time("sensor_time", duration=photo.time_s)
             robot_viz.log_robot_pose(robot.true_pose if sim else leg.estimate)

@@ -4,23 +4,13 @@ image-based renderers (`ibr.render.eval`); the per-method means are printed."""
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
-import numpy as np
 
 from ibr.render.renderers import METHODS, PROXIES
+from ibrnav import jsonout
 from ibrnav.commands.render import RenderArgsError
 from ibrnav.commands.scene import SCENE_HELP
-
-
-def json_safe(x):
-    """The result with NaN/inf floats (a method that covered nothing) written as null."""
-    if isinstance(x, dict):
-        return {k: json_safe(v) for k, v in x.items()}
-    if isinstance(x, list):
-        return [json_safe(v) for v in x]
-    return None if isinstance(x, float) and not np.isfinite(x) else x
 
 
 def run(args: argparse.Namespace) -> int:
@@ -41,8 +31,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = EvalConfig(methods=tuple(m.replace("-", "_") for m in args.methods), proxy=args.proxy,
                      max_views=args.max_views, k=args.k, scale=args.scale)
     result = evaluate_scene(scene, cfg)
-    text = json.dumps(json_safe(result), indent=2, allow_nan=False)
-    Path(args.json).write_text(text)
+    jsonout.write(args.json, result)
     for m, r in result["methods"].items():
         print(f"{m:17s} PSNR {r['psnr_mean']:6.2f} dB  SSIM {r['ssim_mean']:.3f}  coverage {r['coverage_mean']:.3f}"
               f"  PSNR on common pixels {r['psnr_common_mean']:6.2f} dB, exposure-matched {r['psnr_exposure_mean']:6.2f} dB")
@@ -54,11 +43,11 @@ def register(subparsers) -> None:
     e.add_argument("scene", help=SCENE_HELP)
     e.add_argument("--json", required=True, help="write the results here")
     e.add_argument("--methods", nargs="+", choices=list(dict.fromkeys([m.replace("_", "-") for m in METHODS] + list(METHODS))),
-                   default=list(METHODS))
+                   default=list(METHODS), help="the renderers to evaluate")
     e.add_argument("--proxy", choices=PROXIES, default="photos",
-                   help="proxy from the other photos (default), plus plane-sweep points, or the scene's mesh")
+                   help="proxy from the other photos, plus plane-sweep points, or the scene's mesh")
     e.add_argument("--max-views", type=int, default=0, help="evaluate only the first N views (0 = all)")
-    e.add_argument("--k", type=int, default=4, help="sources blended per pixel by ULR (default 4)")
+    e.add_argument("--k", type=int, default=4, help="sources blended per pixel by ULR")
     e.add_argument("--scale", type=float, default=1.0,
-                   help="render and compare at this fraction of the photos' resolution (default 1)")
+                   help="render and compare at this fraction of the photos' resolution")
     e.set_defaults(func=run)

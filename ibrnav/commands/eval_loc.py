@@ -4,12 +4,9 @@ the summary is printed as JSON, per-trial rows go to --json."""
 from __future__ import annotations
 
 import argparse
-import json
 import logging
-from pathlib import Path
 
-from ibrnav import recording
-from ibrnav.commands.eval_ibr import json_safe
+from ibrnav import jsonout, recording
 from ibrnav.commands.localize import add_model_arg
 from ibrnav.commands.scene import SCENE_HELP
 from localization.localize import METHODS
@@ -44,25 +41,29 @@ def run(args: argparse.Namespace) -> int:
         rr.log("plots/confidence", rr.Scalars(row["confidence"]))
 
     out = evaluate_localization(scene, args.method, args.trials or len(scene), spread_m, args.spread_deg,
-                                args.seed, LocConfig(model=args.model), on_trial=on_trial)
+                                args.seed, LocConfig(model=args.model), on_trial=on_trial,
+                                queries=args.queries)
     recording.rerun_teardown(args)
     if args.json:
-        Path(args.json).write_text(json.dumps(json_safe(out), indent=2, allow_nan=False) + "\n")
-    summary = {k: v for k, v in out.items() if k != "per_trial"}
-    print(json.dumps(json_safe(summary), indent=2, allow_nan=False))
+        jsonout.write(args.json, out)
+    print(jsonout.dumps({k: v for k, v in out.items() if k != "per_trial"}))
     return 0
 
 
 def register(subparsers) -> None:
     e = subparsers.add_parser("eval-loc", help="leave-one-out localisation of a scene's photos")
     e.add_argument("scene", help=SCENE_HELP)
-    e.add_argument("--method", choices=METHODS, default="hybrid")
+    e.add_argument("--method", choices=METHODS, default="hybrid",
+                   help="feature PnP, rendered-view particle filter, or PnP then the filter")
     e.add_argument("--trials", type=int, default=0, help="queries (cycling over the photos; 0: one per photo)")
     e.add_argument("--spread-m", default="1.0",
                    help="prior position spread per axis: metres (1.0) or a share of the scene's depth, "
                    "the median depth of its triangulated points (10%%) (default: %(default)s)")
     e.add_argument("--spread-deg", type=float, default=30.0, help="prior rotation spread (deg)")
-    e.add_argument("--seed", type=int, default=0)
+    e.add_argument("--seed", type=int, default=0, help="seed of the priors and the filter")
+    e.add_argument("--queries", choices=("held-out", "novel"), default="held-out",
+                   help="held-out: each query is one of the scene's photos, mapped without it; novel "
+                   "(synthetic scenes): new photos of the world near the map's, against one map of all")
     e.add_argument("--json", help="write per-trial results and the summary here")
     add_model_arg(e)
     recording.add_rerun_args(e)

@@ -4,14 +4,12 @@ with global localisation and a kidnapping, over seeded trials (JSON out, rerun f
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import time
-from pathlib import Path
 
 import numpy as np
 
-from ibrnav import recording
+from ibrnav import jsonout, recording
 from robot.eval_track import TrackConfig
 
 log = logging.getLogger(__name__)
@@ -63,8 +61,8 @@ def run(args: argparse.Namespace) -> int:
     summary = _summary(trials, config)
     out = {"scene": args.scene, "config": {k: v for k, v in vars(config).items()}, **summary, "trials": trials}
     if args.json:
-        Path(args.json).write_text(json.dumps(out, indent=2) + "\n")
-    print(json.dumps(summary, indent=2))
+        jsonout.write(args.json, out)
+    print(jsonout.dumps(summary))
     return 0
 
 
@@ -87,8 +85,8 @@ def _summary(trials: list[dict], config: TrackConfig) -> dict:
 def register(subparsers) -> None:
     p = subparsers.add_parser("eval-track", help="particle-filter tracking + kidnapping in a synthetic world")
     p.add_argument("scene", nargs="?", default="synthetic:office",
-                   help="synthetic:NAME[?seed=N] (default office; the seed defaults to --world-seed)")
-    p.add_argument("--trials", type=int, default=20)
+                   help="synthetic:NAME[?seed=N] (the seed defaults to --world-seed)")
+    p.add_argument("--trials", type=int, default=20, help="tracking runs (one seed each)")
     d = TrackConfig()
     p.add_argument("--steps", type=int, default=d.steps, help="legs (photos) per trial")
     p.add_argument("--kidnap-step", type=int, default=d.kidnap_step, help="teleport before this step (-1: never)")
@@ -97,7 +95,7 @@ def register(subparsers) -> None:
     p.add_argument("--max-particles", type=int, default=d.n_max, help="KLD-sampling's ceiling")
     p.add_argument("--known-start", action="store_true", help="start from the true pose, not a uniform prior")
     p.add_argument("--seed", type=int, default=0, help="seed of trial 0 (trial i uses seed + i)")
-    p.add_argument("--world-seed", type=int, default=0)
+    p.add_argument("--world-seed", type=int, default=0, help="seed of the synthetic world")
     p.add_argument("--json", help="write per-trial results and the summary here")
     recording.add_rerun_args(p)
     p.set_defaults(func=run)

@@ -6,19 +6,19 @@ strategies at equal photo budgets."""
 from __future__ import annotations
 
 import argparse
-import json
+import logging
 import time
-from pathlib import Path
 
 import numpy as np
 
-from ibrnav import recording
+from ibrnav import jsonout, recording
 from ibrnav.args import add_mission_args, mission_config, random_config
 
 START_HEADING = 0.0
 
 
 def run(args: argparse.Namespace) -> int:
+    from ibr.progress import counter
     from ibr.scene import parse_scene_spec
     from ibr.synthetic import loop_route, make_world
     from robot.mission.coverage import CoverageConfig, CoverageTracker
@@ -38,12 +38,14 @@ def run(args: argparse.Namespace) -> int:
     if log:
         recording.rerun_setup(args, f"ibrnav_explore_{args.strategy}", None)
     obs = RecordingObserver(robot, None, log, CoverageTracker(world.mesh, CoverageConfig()))
+    obs.progress = counter(args.photos, "photos", logging.getLogger(__name__))
     rng = np.random.default_rng(args.seed)
     if args.strategy == "random":
         result = run_random_only(robot, start, args.photos, rng, obs, random_config(args))
     else:
         result = run_mission(robot, start, min(args.random_photos, args.photos), args.photos,
                              mission_config(args), rng, obs, random_config(args))
+    obs.progress.close()
     if log:
         recording.rerun_teardown(args)
     report = {"scene": args.scene, "strategy": args.strategy, "seed": args.seed,
@@ -58,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     report["eval_capture"] = _eval_capture(world, robot, result, args.eval_poses, args.seed)
     report["achievable_coverage"] = _achievable(world, robot, args.achievable_poses)
     if args.json:
-        Path(args.json).write_text(json.dumps(report, indent=1))
+        jsonout.write(args.json, report, indent=1)
     print(f"{args.strategy}: coverage {report['coverage']:.3f} with {report['photos']} photos, "
           f"path {report['path_length_m']:.1f} m ({report['seconds']:.0f} s)")
     return 0
@@ -111,7 +113,8 @@ def register(subparsers) -> None:
                               "budget and report surface coverage")
     e.add_argument("scene", help="synthetic:NAME[?seed=N] (office, apartment or courtyard; the world seed defaults "
                    "to --seed)")
-    e.add_argument("--strategy", choices=("adaptive", "random"), default="adaptive")
+    e.add_argument("--strategy", choices=("adaptive", "random"), default="adaptive",
+                   help="adaptive (next-best views on the map) or random exploration alone")
     add_mission_args(e, 136)
     e.add_argument("--json", default=None, help="write the report here")
     e.add_argument("--achievable-poses", type=int, default=2000, help="poses of the dense capture whose coverage "

@@ -6,15 +6,13 @@ exits with status 1."""
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 from pathlib import Path
 
 import numpy as np
 
 from ibr.errors import InputError
-from ibrnav import recording
-from ibrnav.commands.eval_ibr import json_safe
+from ibrnav import jsonout, recording
 from ibrnav.commands.scene import SCENE_HELP
 from localization.localize import METHODS, MODELS
 
@@ -61,8 +59,9 @@ def run(args: argparse.Namespace) -> int:
     spread_m, spread_deg = parse_floats(args.spread, 2, "--spread")
     scene = load_scene(args.scene)
     camera = query_camera(scene, image, args.intrinsics_of, args.query)
-    name = Path(args.query).name
-    mapped = scene.without(name) if any(v.name == name for v in scene.views) else scene
+    query = Path(args.query).resolve()  # one of the scene's own photos is left out of its map
+    same = [v.name for v in scene.views if v.name == query.name or (v.path is not None and v.path.resolve() == query)]
+    mapped = scene.without(same[0]) if same else scene
     log.info(f"building the {args.method} map from {len(mapped)} photos")
     loc = SceneLocalizer(mapped, args.method, LocConfig(model=args.model))
     recording.rerun_setup(args, "ibrnav_localize", "localize.rrd")
@@ -91,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
         out.pop("center_m", None), out.pop("rotvec_deg", None)
         out["best_guess_cam_from_world"] = out.pop("cam_from_world", None)
         log.warning(f"{args.query}: not localised: {res.verdict.reason}")
-    print(json.dumps(json_safe(out), indent=2, allow_nan=False))
+    print(jsonout.dumps(out))
     return 0 if res.localized else 1
 
 
@@ -107,12 +106,13 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("localize", help="localise one photo against a posed scene (pnp, pf, hybrid)")
     p.add_argument("scene", help=SCENE_HELP)
     p.add_argument("--query", required=True, help="the photo to localise")
-    p.add_argument("--method", choices=METHODS, default="hybrid")
+    p.add_argument("--method", choices=METHODS, default="hybrid",
+                   help="feature PnP, rendered-view particle filter, or PnP then the filter")
     p.add_argument("--intrinsics-of", help="scene view whose intrinsics the query shares (default: the first)")
     p.add_argument("--prior", help="x,y,z,rx,ry,rz: camera centre (m) and rotation vector of "
                    "world_from_cam (deg), e.g. --prior=-7,-7,0.2,-90,20,0; default: around every map photo")
-    p.add_argument("--spread", default="1.0,30", help="M,DEG: prior spread (default 1.0,30)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--spread", default="1.0,30", help="M,DEG: prior spread")
+    p.add_argument("--seed", type=int, default=0, help="seed of the particle filter")
     add_model_arg(p)
     recording.add_rerun_args(p)
     p.set_defaults(func=run)

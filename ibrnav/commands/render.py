@@ -65,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
     from PIL import Image
 
     from ibr.render.renderers import make_renderers, proxy_mesh
+    from ibr.progress import progress
     from ibr.render.viz import log_render
     from ibr.scene import load_scene
 
@@ -84,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
     if len(cams) > 1:
         out.mkdir(parents=True, exist_ok=True)
         recording.rerun_setup(args, "ibrnav_render", str(out / "render.rrd"))
-    for i, cam in enumerate(cams):
+    for i, cam in enumerate(progress(cams, desc="frames", logger=log)):
         cam = cam.scaled(args.scale) if args.scale != 1 else cam
         image, covered = renderer.render(cam)
         target = out / f"frame_{i:04d}.png" if len(cams) > 1 else out
@@ -101,18 +102,18 @@ def run(args: argparse.Namespace) -> int:
 def register(subparsers) -> None:
     p = subparsers.add_parser("render", help="render novel views of a scene (ULR, light field, nearest view)")
     p.add_argument("scene", help=SCENE_HELP)
-    p.add_argument("--method", choices=CLI_METHODS, default="ulr")
+    p.add_argument("--method", choices=CLI_METHODS, default="ulr", help="the renderer")
     where = p.add_mutually_exclusive_group(required=True)
     where.add_argument("--camera", help="a Strecha .camera file of the virtual camera")
     where.add_argument("--from-view", help="render at this view's camera")
     where.add_argument("--path", nargs="+", metavar="VIEW", help="fly through these views (PNG frames + rerun)")
     p.add_argument("--out", required=True, help="output image (or folder of frames with --path)")
-    p.add_argument("--frames", type=int, default=10, help="frames per path segment (default 10)")
+    p.add_argument("--frames", type=int, default=10, help="frames per path segment")
     p.add_argument("--hold-out", action="store_true", help="with --from-view: leave that photo out of the sources")
-    p.add_argument("--scale", type=float, default=1.0, help="output resolution factor (default 1)")
+    p.add_argument("--scale", type=float, default=1.0, help="output resolution factor")
     p.add_argument("--proxy", choices=("photos", "dense", "mesh"), default="photos",
-                   help="proxy triangulated from the photos (default), plus plane-sweep points "
+                   help="proxy triangulated from the photos, plus plane-sweep points "
                         "(dense), or the scene's own mesh (synthetic scenes)")
-    p.add_argument("--k", type=int, default=4, help="sources blended per pixel by ULR (default 4)")
+    p.add_argument("--k", type=int, default=4, help="sources blended per pixel by ULR")
     recording.add_rerun_args(p)
     p.set_defaults(func=run)

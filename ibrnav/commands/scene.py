@@ -6,7 +6,8 @@ import argparse
 
 from ibrnav import recording
 
-SCENE_HELP = "a Strecha folder, a COLMAP model folder or synthetic:NAME[?seed=N&views=N&width=W&height=H]"
+SCENE_HELP = ("a Strecha folder, a COLMAP model folder, a capture folder (ibrnav demo --session) or "
+              "synthetic:NAME[?seed=N&views=N&width=W&height=H]")
 
 
 def run(args: argparse.Namespace) -> int:

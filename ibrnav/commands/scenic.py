@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import logging
 import time
 
@@ -14,7 +13,7 @@ import numpy as np
 
 from explore.scenic.session import PLANNERS
 from ibr.errors import InputError
-from ibrnav import recording
+from ibrnav import jsonout, recording
 
 log = logging.getLogger(__name__)
 
@@ -79,9 +78,8 @@ def run(args: argparse.Namespace) -> int:
     per_frame = [{"frame": r.frame, **r.metrics} for r in reports]
     result = {"per_frame": per_frame, "final": dict(per_frame[-1])}
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(result, f, indent=1)
-    print(json.dumps(result["final"]))
+        jsonout.write(args.json, result, indent=1)
+    print(jsonout.dumps(result["final"], indent=None))
     return 0
 
 
@@ -93,7 +91,8 @@ def register(subparsers) -> None:
     p.add_argument("--frames", type=int, default=30, help="planning iterations after the first pair")
     p.add_argument("--gamma", type=float, default=0.7, help="NBV cost of rays seeing nothing: "
                    "0 explores, 1 refines")
-    p.add_argument("--planner", choices=PLANNERS, default="scenic")
+    p.add_argument("--planner", choices=PLANNERS, default="scenic",
+                   help="the scenic planner (Mendez et al.) or a PRM / RRT* baseline")
     p.add_argument("--seed", type=int, default=0, help="world and planner seed")
     p.add_argument("--json", help="write per-frame metrics to this JSON file")
     p.add_argument("--width", type=int, default=320, help="image width (pixels)")

@@ -1,7 +1,10 @@
 """`ibrnav vueplan SITE`: VuePlan's two-phase view planning on a site (Blaer & Allen 2009):
 Phase I views from the 2-D map, the roadmap tour of them, simulated scans, then Phase II
-next-best views on the voxel space until the best view sees fewer boundary-unseen voxels
-than the threshold. Prints the paper's per-iteration table; progress goes to stderr.
+next-best views on the voxel space, from the potential views the robot can reach, until the
+best one sees fewer boundary-unseen voxels than --stop-fraction of them (the unseen boundary
+in sight is exhausted). Prints the paper's per-iteration table and how much of the true
+surface any reachable view has in sight (the most Phase II could cover); progress goes to
+stderr.
 
 SITE: `synthetic:NAME[?seed=N]` (the world's mesh and free space), or a mesh file with
 `--floorplan FILE.geojson|.wkt` (or, without it, a slice of the mesh at --slice-height).
@@ -10,35 +13,43 @@ SITE: `synthetic:NAME[?seed=N]` (the world's mesh and free space), or a mesh fil
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import time
-from pathlib import Path
 
 import numpy as np
 
 from ibr.errors import InputError
-from ibrnav import recording
+from ibrnav import jsonout, recording
+
+RAY_BACKENDS = ("gl", "embree", "walk")  # explore.vueplan.phase2.RAY_BACKENDS (imported lazily there)
 
 log = logging.getLogger(__name__)
 
 
-def print_table(rows: list) -> None:
+def print_table(rows: list, in_sight: float | None = None) -> None:
     print(f"{'At the end of':<14}{'Seen-occupied':>14}{'Total unseen':>14}{'Boundary unseen':>17}"
           f"{'Visible to NBV':>16}{'Surface cov.':>14}{'NBV s':>8}")
     for k, r in enumerate(rows):
         print(f"{'Phase I' if k == 0 else f'NBV {k}':<14}{r.seen_occupied:>14,}{r.unseen:>14,}"
               f"{r.boundary_unseen:>17,}{r.visible_to_nbv:>16,}{r.surface_coverage:>14.3f}{r.seconds:>8.2f}")
+    if rows:
+        print(f"stopped: {rows[-1].stop}")
+    if in_sight is not None and rows:
+        final = rows[-1].surface_coverage
+        print(f"true surface in sight of some reachable view: {in_sight:.3f}; covered: {final:.3f} "
+              f"({final / max(in_sight, 1e-12):.3f} of what is in sight)")
 
 
 def check_flags(args: argparse.Namespace) -> None:
     """One clear error for flag values the planners cannot use."""
     for flag in ("candidates", "voxel", "scan_resolution", "max_range", "candidate_stride",
-                 "surface_samples", "roadmap_spacing"):
+                 "surface_samples", "roadmap_spacing", "max_nbv"):
         if getattr(args, flag) <= 0:
             raise InputError(f"--{flag.replace('_', '-')} must be positive, got {getattr(args, flag)}")
     if not 0 <= args.min_range < args.max_range:
         raise InputError(f"--min-range {args.min_range} must be in [0, --max-range {args.max_range})")
+    if not 0 <= args.stop_fraction < 1:
+        raise InputError(f"--stop-fraction {args.stop_fraction} must be in [0, 1)")
     if not 0 < args.fov <= 360 or not 0 < args.grazing < 90:
         raise InputError(f"--fov {args.fov} must be in (0, 360] and --grazing {args.grazing} "
                          "in (0, 90) degrees")
@@ -80,19 +91,25 @@ def run(args: argparse.Namespace) -> int:
     vv.log_roadmap(roadmap.nodes, roadmap.edges)
     vv.log_tour(tour.path)
 
-    out["phase2"] = ([] if args.phase1_only else
-                     run_phase2(args, mesh, plan, renderer, height, p1.views[tour.order], rng, vv))
+    out["phase2"] = []
+    if not args.phase1_only:
+        out["phase2"], out["surface_in_sight"] = run_phase2(args, mesh, plan, renderer, height,
+                                                            p1.views[tour.order], rng, vv)
     out["tour_length_m"] = tour.length_m
     if args.json:
-        Path(args.json).write_text(json.dumps(out, indent=2) + "\n")
+        jsonout.write(args.json, out)
     recording.rerun_teardown(args)
     return 0
 
 
-def run_phase2(args, mesh, plan, renderer, height, views_xy, rng, vv) -> list[dict]:
-    from explore.vueplan.phase2 import Phase2Config, SurfaceCoverage, ground_candidates, plan_phase2
+def run_phase2(args, mesh, plan, renderer, height, views_xy, rng, vv) -> tuple[list[dict], float]:
+    """Phase II from the Phase I scans; returns the table's rows and the fraction of the true
+    surface in sight of some reachable potential view."""
+    from explore.vueplan.phase2 import (Phase2Config, SurfaceCoverage, ground_candidates, plan_phase2,
+                                        reachable_views)
     from explore.vueplan.scan_simulator import ScanConfig, simulate_scan
     from explore.vueplan.voxel_grid import VoxelGrid, insert_scan
+    from ibr.progress import counter, progress
 
     scfg = ScanConfig(resolution_deg=args.scan_resolution, min_range_m=args.min_range,
                       max_range_m=args.max_range, range_noise_m=args.range_noise)
@@ -113,19 +130,22 @@ def run_phase2(args, mesh, plan, renderer, height, views_xy, rng, vv) -> list[di
         return scan
 
     log.info(f"voxel grid {grid.shape} ({np.prod(grid.shape):,} voxels of {args.voxel} m)")
-    for xy in views_xy:
+    for xy in progress(views_xy, desc="Phase I scans", logger=log):
         scan = acquire(np.r_[xy, height])
         insert_scan(grid, scan.origin, scan.points, scan.no_return, scan.max_range_m)
     p2cfg = Phase2Config(min_range_m=args.min_range, max_range_m=args.max_range,
-                         max_grazing_rad=np.deg2rad(args.grazing), threshold=args.threshold,
+                         max_grazing_rad=np.deg2rad(args.grazing), stop_fraction=args.stop_fraction,
                          max_views=args.max_nbv, sensor_height_m=height,
                          candidate_stride=args.candidate_stride, ray_backend=args.ray_backend)
     candidates = ground_candidates(grid, plan.free_space, p2cfg)
-    log.info(f"Phase II: {len(candidates)} potential views, threshold {args.threshold}")
+    candidates = candidates[reachable_views(candidates, plan.free_space, views_xy, p2cfg.candidate_clearance_m)]
+    log.info(f"Phase II: {len(candidates)} reachable potential views, stop below "
+             f"{args.stop_fraction:.3f} of the boundary unseen")
 
     def on_row(row, counts):
         k = len(rows_seen)
         rows_seen.append(row)
+        bar.update()
         vv.log_voxels(step, grid)
         vv.log_nbv_candidates(step, candidates, counts, row.nbv)
         vv.log_phase2_row(step, row)
@@ -133,9 +153,15 @@ def run_phase2(args, mesh, plan, renderer, height, views_xy, rng, vv) -> list[di
                   f"best view sees {row.visible_to_nbv} ({row.seconds:.1f} s)")
 
     rows_seen: list = []
+    bar = counter(args.max_nbv + 1, "NBV iterations", log)
     rows = plan_phase2(grid, candidates, acquire, p2cfg, lambda: coverage.fraction, on_row)
-    print_table(rows)
-    return [r.as_json() for r in rows]
+    bar.close()
+    t = time.perf_counter()
+    poses = np.vstack([candidates, np.c_[views_xy, np.full(len(views_xy), height)]])  # + the Phase I scans
+    in_sight = float(coverage.in_sight(mesh, poses, args.min_range, args.max_range).mean())
+    log.info(f"true surface in sight of some reachable view: {in_sight:.3f} ({time.perf_counter() - t:.1f} s)")
+    print_table(rows, in_sight)
+    return [r.as_json() for r in rows], in_sight
 
 
 def register(subparsers) -> None:
@@ -161,11 +187,12 @@ def register(subparsers) -> None:
     p.add_argument("--voxel", type=float, default=0.5, help="Phase II voxel size (m)")
     p.add_argument("--candidate-stride", type=int, default=2,
                    help="Phase II: every n-th ground voxel is a potential view")
-    p.add_argument("--threshold", type=int, default=20,
-                   help="Phase II stop: best view sees fewer boundary-unseen voxels")
-    p.add_argument("--ray-backend", choices=("embree", "walk"), default="embree",
-                   help="Phase II occlusion test: Embree ray queries or the numpy voxel walk")
-    p.add_argument("--max-nbv", type=int, default=10, help="Phase II: at most this many next-best views")
+    p.add_argument("--stop-fraction", type=float, default=0.02,
+                   help="Phase II stop: the best view sees fewer than this fraction of the boundary-unseen voxels")
+    p.add_argument("--ray-backend", choices=RAY_BACKENDS, default="gl",
+                   help="Phase II visibility test: GL compute pass (default), Embree ray queries (exact "
+                        "reference) or the numpy voxel walk")
+    p.add_argument("--max-nbv", type=int, default=30, help="Phase II: at most this many next-best views (a guard)")
     p.add_argument("--scan-resolution", type=float, default=0.5,
                    help="simulated scanner beam step (deg)")
     p.add_argument("--range-noise", type=float, default=0.0, help="simulated range noise sigma (m)")

@@ -30,6 +30,7 @@ class RecordingObserver(MissionObserver):
         self.sim = isinstance(robot, SimRobot)
         self.coverage_curve: list[tuple[int, float]] = []
         self.errors: list[tuple[float, float]] = []  # (filter, dead reckoning) position errors (m)
+        self.progress = None  # a bar (ibr.progress.counter) advanced by each model photo
 
     def restore(self, records: list[dict]) -> None:
         """Counts and coverage of the photos a resumed session already holds (its records)."""
@@ -54,6 +55,8 @@ class RecordingObserver(MissionObserver):
         truth = self._truth(mp.photo.index)
         if mp.stage != "localise":
             self.n_model += 1
+            if self.progress is not None:
+                self.progress.update()
             if self.cov is not None:
                 cam = robot_camera(truth, self.robot.intrinsics, self.robot.image_size, self.robot.cam_from_robot)
                 self.coverage_curve.append((self.n_model, self.cov.add(cam)))
@@ -89,6 +92,7 @@ class RecordingObserver(MissionObserver):
     def particles(self, particles, weights) -> None:
         if self.log:
             loc_viz.log_particles(particles, weights)
+            loc_viz.log_particle_count(len(particles))
             if self.sim:
                 loc_viz.log_estimate_error(self._filter_mean(particles, weights), self.robot.true_pose)
 

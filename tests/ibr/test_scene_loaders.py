@@ -90,8 +90,10 @@ def test_colmap_model_roundtrip(tmp_path, strecha_folder):
     folder, cams, imgs = strecha_folder
     rec = pycolmap.Reconstruction()
     K = cams[0].K
+    # COLMAP's principal point is half a pixel further (pixel (0, 0) is a corner there)
     rec.add_camera_with_trivial_rig(pycolmap.Camera(
-        model="PINHOLE", width=64, height=48, params=[K[0, 0], K[1, 1], K[0, 2], K[1, 2]], camera_id=1))
+        model="PINHOLE", width=64, height=48, params=[K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5],
+        camera_id=1))
     for i, cam in enumerate(cams, start=1):
         image = pycolmap.Image(name=cam.name, camera_id=1, image_id=i)
         rec.add_image_with_trivial_frame(image, pycolmap.Rigid3d(cam.cam_from_world[:3, :]))

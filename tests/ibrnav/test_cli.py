@@ -40,6 +40,10 @@ def test_demo_runs_the_capture_mission_into_a_recording_and_a_session(tmp_path):
     photos = [r for r in log if r["kind"] == "photo"]
     assert sum(r["stage"] != "localise" for r in photos) == 44
     assert len(list((capture / "photos").glob("*.png"))) == len(photos)
+    from ibr.scene import load_scene  # the capture folder is a scene: the final model it wrote
+
+    scene = load_scene(capture)
+    assert scene.meta["poses"] == "model" and len(scene) >= 20 and scene.mesh is not None
 
 
 def test_drive_records_to_a_default_file_without_flags(tmp_path):
@@ -81,6 +85,7 @@ def test_bench_knows_the_figures_of_every_package():
                                "explore.scenic.bench", "explore.vueplan.bench"]
     assert set(all_figures()) == {
         "mesh_views_per_s_64x48", "ulr_fps_640x480_10src", "particle_likelihoods_per_s_64x48", "pnp_s_per_query",
+        "pf_seconds_per_query",
         "heuristic_evals_per_s_100src_64x48", "heuristic_evals_per_s_100src_160x120", "astar_s_100x100",
         "astar_s_1000x1000", "scenic_nbv_poses_per_s", "vueplan_phase2_s_per_nbv", "vueplan_phase1_s_500"}
 

@@ -18,7 +18,7 @@ def test_eval_ibr_writes_leave_one_out_json(ibrnav_command, gl_ctx, tmp_path):
     assert ibrnav_command("eval-ibr", SCENE, "--json", out, "--proxy", "mesh", "--max-views", 2) == 0
     result = json.loads(out.read_text())
     assert result["scene"] == "synthetic:office"
-    assert set(result["methods"]) == {"ulr", "nearest", "lightfield", "lightfield_local"}
+    assert set(result["methods"]) == {"ulr", "ulr_pixel", "nearest", "lightfield", "lightfield_local"}
     for m, r in result["methods"].items():
         assert len(r["per_view"]) == 2 and 0.0 <= r["coverage_mean"] <= 1.0
         assert all("psnr_common" in row for row in r["per_view"]) and "psnr_common_mean" in r

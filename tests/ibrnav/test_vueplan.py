@@ -10,18 +10,20 @@ from ibr.errors import InputError
 def test_vueplan_cli_writes_json_and_table(ibrnav_command, tmp_path, capsys, gl_ctx):
     out = tmp_path / "vp.json"
     assert ibrnav_command(*["vueplan", "synthetic:courtyard", "--candidates", "200", "--voxel", "1.0",
-                   "--scan-resolution", "2", "--threshold", "5", "--max-nbv", "2",
+                   "--scan-resolution", "2", "--stop-fraction", "0.02", "--max-nbv", "2",
                    "--surface-samples", "2000", "--json", str(out), "--save", str(tmp_path / "vp.rrd")]) == 0
     res = json.loads(out.read_text())
     assert res["phase1"]["views"] >= 2 and res["phase1"]["boundary_coverage"] >= 0.95
     assert res["tour_length_m"] > 0
     rows = res["phase2"]
     assert 1 <= len(rows) <= 3
-    assert set(res) == {"phase1", "phase2", "tour_length_m"}
+    assert set(res) == {"phase1", "phase2", "tour_length_m", "surface_in_sight"}
+    assert rows[-1]["surface_coverage"] <= res["surface_in_sight"] <= 1
     assert set(res["phase1"]) == {"views", "boundary_coverage", "seconds"}
-    keys = {"seen_occupied", "unseen", "boundary_unseen", "visible_to_nbv", "surface_coverage", "seconds"}
+    keys = {"seen_occupied", "unseen", "boundary_unseen", "visible_to_nbv", "surface_coverage", "seconds", "stop"}
     assert all(set(r) == keys for r in rows)
-    assert "Boundary unseen" in capsys.readouterr().out
+    text = capsys.readouterr().out
+    assert "Boundary unseen" in text and "in sight of some reachable view" in text
     assert (tmp_path / "vp.rrd").stat().st_size > 0
 
 

@@ -1,0 +1,46 @@
+"""The localisation evaluation's parts with known answers: novel query photos of a synthetic
+world are new poses in its free space whose photos are the world's renders there; the prior
+spread parses metres and shares of the scene depth; the summary counts flags and precision."""
+
+import numpy as np
+import pytest
+import shapely
+
+from ibr.scene import load_scene
+from localization.confidence import Verdict
+from localization.eval import novel_queries, prior_spread_m, summarise
+from localization.localize import LocalizeError
+
+
+def test_novel_queries_are_new_poses_in_free_space_photographed_by_the_world(gl_ctx):
+    scene = load_scene("synthetic:office?views=6&width=160&height=120")
+    queries = novel_queries(scene, 5, np.random.default_rng(0), depth_m=3.0)
+    assert len(queries) == 5
+    for q in queries:
+        assert scene.world.free_space.contains(shapely.Point(q.camera.center[:2]))
+        nearest = min(np.linalg.norm(q.camera.center - c.center) for c in scene.cameras)
+        assert 0 < nearest <= 0.1 * 3.0 * np.sqrt(2 + 0.01) + 1e-9
+        np.testing.assert_array_equal(q.image, scene.world.photograph(q.camera))
+
+
+def test_prior_spread_is_metres_or_a_share_of_the_depth(monkeypatch):
+    import localization.eval as ev
+    monkeypatch.setattr(ev, "median_point_depth", lambda scene: 20.0)
+    assert prior_spread_m("0.5", None) == 0.5
+    assert prior_spread_m("10%", None) == pytest.approx(2.0)
+    for bad in ("-1", "abc", "nan%"):
+        with pytest.raises(LocalizeError, match="--spread-m"):
+            prior_spread_m(bad, None)
+
+
+def test_summary_counts_flags_and_their_precision():
+    def row(pos, localized, confidence):
+        v = Verdict(localized, confidence, "" if localized else "why")
+        return {"position_m": pos, "rotation_deg": None if pos is None else 0.1, "success": pos is not None and pos < 0.05,
+                "seconds": 1.0, **v.as_dict()}
+    rows = [row(0.01, True, 1.0), row(0.02, True, 0.95), row(0.5, True, 0.6), row(None, False, 0.0)]
+    s = summarise(rows)
+    assert s["success_rate"] == 0.5 and s["flagged_rate"] == 0.75
+    assert s["flag_precision"] == pytest.approx(2 / 3)
+    assert s["median_position_m"] == pytest.approx(0.26)  # the missing pose counts as infinitely far
+    assert [b["queries"] for b in s["calibration"]] == [1, 1, 2]
