@@ -29,6 +29,8 @@ Algorithm code only: what happens is reported to a `MissionObserver`
 
 from __future__ import annotations
 
+import logging
+
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -47,6 +49,8 @@ from robot.mission.map_building import MapConfig, RobotMap, extend_map, stereo_t
 from robot.mission.observer import MissionObserver, MissionPhoto
 from robot.mission.random_stage import Body
 from robot.protocol import Photo, Robot, robot_camera
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -240,6 +244,8 @@ class AdaptiveMission:
                     continue
                 clip, eyes = vq.pose_views(cand, self.template, self.robot.cam_from_robot)
                 seen = vq.seen_free(eyes, c.clearance_m)  # not behind the map's walls, nor in furniture
+                log.debug(f"goal choice ({'strict' if strict else 'relaxed'} grid): {len(cand)} reachable "
+                          f"candidates, {int(seen.sum())} where a photo saw free space")
                 cand = cand[seen]
                 if len(cand):
                     break
@@ -261,9 +267,12 @@ class AdaptiveMission:
         try:
             cand = sample_candidates(free, c.n_candidates, self.rng, c.clearance_m)
         except InputError:  # the free space has no room left after the clearance
+            log.debug("goal choice: the free space has no room left after the clearance")
             return np.zeros((0, 3))
         mask = reachable_mask(self._from_here(grid), self.body.est.pose[:2], c.max_path_cost)
         keep = reachable_at(grid, mask, cand[:, :2])
+        log.debug(f"goal choice: {len(cand)} candidates in the free space ({free.area:.1f} m2), "
+                  f"{int(keep.sum())} reachable ({int(mask.sum())} grid cells)")
         if self.given_up_goals:
             bad = np.array(self.given_up_goals)[:, :2]
             d = np.linalg.norm(cand[:, None, :2] - bad[None], axis=2)

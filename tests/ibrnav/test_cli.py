@@ -24,7 +24,7 @@ def rrd_entities(rrd: Path) -> str:
 
 def test_demo_runs_the_capture_mission_into_a_recording_and_a_session(tmp_path):
     rrd, capture = tmp_path / "demo.rrd", tmp_path / "capture"
-    run = ibrnav("demo", "--random-photos", "40", "--circle-step-deg", "20", "--photos", "44", "--width", "240",
+    run = ibrnav("demo", "--world", "office", "--random-photos", "40", "--circle-step-deg", "20", "--photos", "44", "--width", "240",
                  "--height", "180", "--max-rounds", "1", "--goals-per-round", "2", "--tour-frames", "2",
                  "--session", capture, "--save", rrd)
     assert run.returncode == 0, run.stderr
