@@ -26,7 +26,8 @@ class FreeSpaceConfig:
     """Half-widths (metres) tried in turn for thickening the slice's segments into walls:
     a gap narrower than twice the buffer is sealed. The first that encloses the cameras wins."""
     hull_margin_m: float = 0.75
-    """Fallback when no buffer encloses the cameras: their convex hull grown by this much."""
+    """The cameras' convex hull grown by this much (metres) is always free space: the whole
+    fallback when the slice is empty, part of the "closed" one (the robot stood there)."""
 
 
 def slice_segments(mesh: trimesh.Trimesh, plane_z: float) -> np.ndarray:
@@ -46,8 +47,12 @@ def free_space_from_slice(segments: np.ndarray, inside_xy: np.ndarray,
       around everything (i.e. are enclosed), are the free space. Buffers from
       `config.seal_buffers_m` are tried smallest first, so small leaks of a rough Poisson
       mesh are sealed while a genuinely open side is not mistaken for closed.
-    - "hull": no buffer encloses the cameras (the mesh is open on a side): the cameras'
-      convex hull grown by `config.hull_margin_m`, minus the thinnest walls.
+    - "closed": no buffer encloses the cameras (the mesh is open on a side, e.g. where
+      far or plain walls gave SfM no points): the slice is closed by its convex hull, i.e.
+      the free space is the convex hull of the segments and of the cameras' grown hull
+      (`config.hull_margin_m`), minus the thinnest walls, the part holding the cameras.
+      The walls the map does know still bound it; only its open sides become straight.
+    - "hull": the slice is empty: the cameras' convex hull grown by `config.hull_margin_m`.
 
     The free space excludes the thickened walls, so it lies a buffer inside the slice."""
     inside_xy = np.asarray(inside_xy, dtype=np.float64).reshape(-1, 2)
@@ -66,7 +71,8 @@ def free_space_from_slice(segments: np.ndarray, inside_xy: np.ndarray,
         if held is not None and not held.intersects(frame.exterior):
             return held, f"sealed:{b:g}"
     walls = lines.buffer(config.seal_buffers_m[0], cap_style="square")
-    return _holding(hull.difference(walls), inside_xy) or hull, "hull"
+    closed = shapely.union(hull, shapely.MultiPoint(segments.reshape(-1, 2))).convex_hull
+    return _holding(closed.difference(walls), inside_xy) or hull, "closed"
 
 
 def _holding(geom: shapely.Geometry, xy: np.ndarray) -> shapely.Geometry | None:
@@ -81,7 +87,7 @@ def free_space_from_mesh(mesh: trimesh.Trimesh, plane_z: float, inside_xy: np.nd
     """The robot's space as the paper finds it: slice `mesh` at the camera height plane_z
     (metres) and keep the region(s) around the camera positions inside_xy (M, 2); its
     boundary is the walls and furniture seen at that height. Copes with a leaky Poisson
-    mesh by sealing gaps, else falls back to the cameras' grown convex hull (see
+    mesh by sealing gaps, else closes its open sides by its convex hull (see
     `free_space_from_slice` for which and when).
 
     (explore.floorplan.floor_plan_from_mesh is not reused: it makes every *closed* outline an

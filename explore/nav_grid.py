@@ -121,3 +121,33 @@ def nav_grid_from_points(points: np.ndarray, bounds_xy, config: NavGridConfig = 
     if config.normalize and cost.max() > 0:
         cost = cost / cost.max()
     return NavGrid(origin, cell, score, cost)
+
+
+def reachable_mask(grid: NavGrid, start_xy, max_cost: float, clearance_m: float = 0.0) -> np.ndarray:
+    """(H, W) bool: the cells a robot at start_xy (metres) can reach on the grid, 8-connected
+    (as A* moves) through cells whose cost K <= max_cost and that lie at least clearance_m
+    (metres, e.g. the robot's radius) from every blocked cell. When the robot's own cell
+    fails the test (it stands near furniture), the component of the nearest passing cell
+    is taken. Cells outside the grid are blocked."""
+    passable = np.asarray(grid.cost) <= max_cost
+    if clearance_m > 0:
+        r = clearance_m / grid.cell_m
+        passable &= ndimage.distance_transform_edt(passable) > r
+    labels, n = ndimage.label(passable, structure=np.ones((3, 3), bool))
+    if n == 0:
+        return np.zeros(grid.shape, bool)
+    H, W = grid.shape
+    i, j = np.clip(grid.world_to_cell(np.asarray(start_xy, dtype=np.float64)), 0, [H - 1, W - 1])
+    if labels[i, j] == 0:
+        _, (ii, jj) = ndimage.distance_transform_edt(labels == 0, return_indices=True)
+        i, j = ii[i, j], jj[i, j]
+    return labels == labels[i, j]
+
+
+def reachable_at(grid: NavGrid, mask: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """(N,) bool: the world points xy (N, 2) metres lie in a cell of `mask` (H, W)."""
+    ij = grid.world_to_cell(np.asarray(xy, dtype=np.float64).reshape(-1, 2))
+    ok = grid.in_bounds(ij)
+    out = np.zeros(len(ij), bool)
+    out[ok] = mask[ij[ok, 0], ij[ok, 1]]
+    return out

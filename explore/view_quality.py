@@ -229,6 +229,26 @@ class ViewQuality:
         `cam_from_robot` (4, 4)."""
         return self.score_views(*self.pose_views(poses, template, cam_from_robot))
 
+    def seen_free(self, points: np.ndarray, margin_m: float = 0.3) -> np.ndarray:
+        """(N,) bool: some source saw through each world point (N, 3) (metres): the point
+        projects inside the source's depth map, in front of it, at least `margin_m` (metres,
+        camera z) nearer than the proxy there, so the photo's ray crossed it: empty space.
+        A point behind a wall, inside furniture, or where the proxy has a hole is not. The
+        candidates of the heuristic must stand there: a view from behind the proxy sees only
+        surfaces no source saw and would score the most."""
+        s = self.sources
+        n_src, h, w = s.depths.shape
+        P = np.c_[np.asarray(points, dtype=np.float64).reshape(-1, 3), np.ones(len(points))]
+        q = np.einsum("sij,nj->sni", s.pixel_from_world[:, :3], P)  # (S, N, 3): z u, z v, z
+        z = q[..., 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            px = np.floor(q[..., :2] / z[..., None] + 0.5)
+        ok = (z > self.config.near) & np.all((px >= 0) & (px < [w, h]), axis=-1)
+        d = np.zeros(z.shape)
+        src = np.broadcast_to(np.arange(n_src)[:, None], z.shape)
+        d[ok] = s.depths[src[ok], px[..., 1][ok].astype(int), px[..., 0][ok].astype(int)]
+        return np.any(ok & (d > 0) & (z < d - margin_m), axis=0)
+
     def score_views_numpy(self, clip_from_world: np.ndarray, eyes: np.ndarray) -> np.ndarray:
         """The naive path (tests, benchmark baseline): one render and read-back per view,
         then `view_quality_numpy`. Same (N, 3) as `view_stats`."""

@@ -1,5 +1,6 @@
-"""`ibrnav demo`: the autonomous scene-capture mission of Foster, Wang & Grupen in
-synthetic:office (`robot.mission`): random exploration, the initial map (SfM), adaptive
+"""`ibrnav demo`: the autonomous scene-capture mission of Foster, Wang & Grupen in a
+synthetic apartment (`--world office` for the office; `robot.mission`): random exploration,
+the initial map (SfM), adaptive
 exploration with the rendering-quality heuristic until the gain runs out, the final model and
 a virtual tour (ULR fly-through). Path following runs on an SE(2) particle filter. Every photo,
 pose estimate and map event goes to a capture session folder as it happens, with a commit per
@@ -33,9 +34,20 @@ def _new_session_dir(base: str) -> Path:
 
 def _demo_meta(args: argparse.Namespace, sim: bool) -> dict:
     """What a session folder's mission was run with: resuming needs the same."""
-    return {"command": "demo", "world": "office", "seed": args.seed, "robot": "sim" if sim else "nxt",
+    return {"command": "demo", "world": args.world, "seed": args.seed, "robot": "sim" if sim else "nxt",
             **{k: getattr(args, k) for k in ("photos", "random_photos", "circle_step_deg", "max_rounds",
                                               "goals_per_round", "min_gain_deg")}}
+
+
+def demo_world(name: str, seed: int):
+    """(world, start pose (3,)): the office starts on its demo loop facing east; any other
+    world (an apartment by default) at `world.start_pose`, a random room drawn from the seed."""
+    from ibr.synthetic import loop_route, make_world
+
+    world = make_world(name, seed)
+    if name == "office":
+        return world, np.array([*loop_route(world)[0], START_HEADING])
+    return world, world.start_pose(np.random.default_rng(seed))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -43,7 +55,6 @@ def run(args: argparse.Namespace) -> int:
     from its last commit (`robot.mission.journal`), a finished one left as it is."""
     import rerun as rr
 
-    from ibr.synthetic import loop_route, make_world
     from robot import viz as robot_viz
     from ibr.progress import counter
     from robot.mission import viz as mission_viz
@@ -56,8 +67,7 @@ def run(args: argparse.Namespace) -> int:
     from robot.sim_robot import SimRobot
 
     t0 = time.perf_counter()
-    world = make_world("office", args.seed)
-    start = np.array([*loop_route(world)[0], START_HEADING])
+    world, start = demo_world(args.world, args.seed)
     folder = Path(args.session) if args.session else _new_session_dir("ibrnav_demo_capture")
     with open_robot(args, world, start) as robot, contextlib.ExitStack() as stack:
         sim = isinstance(robot, SimRobot)
@@ -86,8 +96,9 @@ def run(args: argparse.Namespace) -> int:
         final = result.robot_map
         session.write_model([final.cameras[i] for i in sorted(final.cameras)], final.mesh, final.points, final.colors)
         session.commit(sum(r["kind"] == "commit" for r in session.records),
-                       {"stage": "finished", "stop_reason": result.stop_reason, "path_m": result.path_m})
-        log.info(f"mission finished ({result.stop_reason}); final model: {len(result.robot_map.points)} points, "
+                       {"stage": "finished", "stopped_because": result.stopped_because,
+                        "stop_reason": result.stop_reason, "path_m": result.path_m})
+        log.info(f"mission finished: {result.stopped_because} ({result.stop_reason}); final model: {len(result.robot_map.points)} points, "
                  f"{len(result.robot_map.mesh.faces)} faces")
         mission_viz.log_robot_map(result.robot_map.points, result.robot_map.colors, result.robot_map.mesh)
         if args.tour_frames > 0:
@@ -108,15 +119,17 @@ def run(args: argparse.Namespace) -> int:
                 f"{err['dead_reckoning_mean']:.2f} m (dead reckoning)")
     print(f"captured {len(result.model_photos)} photos ({len(result.photos) - len(result.model_photos)} more to "
           f"localise) in {result.rounds} adaptive round{'s' if result.rounds != 1 else ''}, {len(result.goals)} goals reached, {result.given_up} "
-          f"given up, drove {result.path_m:.1f} m{cov}; capture folder {folder}; "
+          f"given up, drove {result.path_m:.1f} m{cov}; stopped: {result.stopped_because}; capture folder {folder}; "
           f"{time.perf_counter() - t0:.0f} s")
     return 0
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("demo", help="the autonomous scene-capture mission in synthetic:office "
+    p = subparsers.add_parser("demo", help="the autonomous scene-capture mission in a synthetic apartment "
                               "(random + adaptive exploration, map, virtual tour), recorded to rerun")
     add_mission_args(p, 136)
+    p.add_argument("--world", choices=("apartment", "office"), default="apartment",
+                   help="the synthetic world (built from --seed; the robot starts in a random room of an apartment)")
     add_robot_args(p)
     p.add_argument("--session", default=None, help="capture-session folder to write, or to resume the mission of (default: a new "
                    "ibrnav_demo_capture[_N] folder)")

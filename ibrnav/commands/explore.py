@@ -29,8 +29,10 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     spec = parse_scene_spec(args.scene, synthetic_only=True, allowed=("seed",))
     world = make_world(spec.world, spec.seed(args.seed))
-    route_start = loop_route(world)[0] if world.name == "office" else np.array(world.free_space.centroid.coords[0])
-    start = np.array([*route_start, START_HEADING])
+    if world.name == "office":
+        start = np.array([*loop_route(world)[0], START_HEADING])
+    else:
+        start = world.start_pose(np.random.default_rng(args.seed))
     robot = SimRobot(world, rng=np.random.default_rng(args.seed), start_pose=start)
     log = recording.recording_requested(args)  # record only when asked
     if log:
@@ -51,9 +53,12 @@ def run(args: argparse.Namespace) -> int:
               "photos": len(result.model_photos), "localisation_photos": len(result.photos) - len(result.model_photos),
               "path_length_m": result.path_m, "coverage_curve": [list(p) for p in obs.coverage_curve],
               "rounds": result.rounds, "goals_reached": len(result.goals), "goals_given_up": result.given_up,
-              "pnp_fixes": result.fixes, "pnp_failures": result.failed_fixes, "stop_reason": result.stop_reason,
-              "localisation_error_m": obs.error_summary(),
+              "pnp_fixes": result.fixes, "pnp_failures": result.failed_fixes,
+              "stopped_because": result.stopped_because, "stop_reason": result.stop_reason,
+              **_truth_report(world, robot, result), "position_errors": obs.error_summary(),
               "seconds": time.perf_counter() - t0}
+    report["eval_capture"] = _eval_capture(world, robot, result, args.eval_poses, args.seed)
+    report["achievable_coverage"] = _achievable(world, robot, args.achievable_poses)
     if args.json:
         jsonout.write(args.json, report, indent=1)
     print(f"{args.strategy}: coverage {report['coverage']:.3f} with {report['photos']} photos, "
@@ -61,13 +66,60 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _truth_report(world, robot, result) -> dict:
+    """The mission against the simulator's truth (`robot.mission.evaluation`)."""
+    from robot.mission.evaluation import localisation_errors, map_scale_error, rooms_visited, true_poses
+
+    truth = true_poses(robot.truth)
+    loc = localisation_errors(result.photos, truth)
+    visited, rooms = rooms_visited(world, result.model_photos, truth)
+    return {"localization_error_m": None if loc is None else {k: loc[k] for k in ("median", "p95", "max", "photos")},
+            "heading_error_deg": None if loc is None else {"median": loc["heading_median_deg"],
+                                                           "p95": loc["heading_p95_deg"]},
+            "map_scale_error": map_scale_error(result.robot_map, truth, robot.cam_from_robot, result.photos),
+            "rooms_visited": visited, "rooms": rooms}
+
+
+def _eval_capture(world, robot, result, n_poses: int, seed: int) -> dict | None:
+    """ULR of the captured model at `n_poses` random free-space poses against the world's
+    true renders (`robot.mission.evaluation.eval_capture`), at half the photos' size; None
+    without a model (random strategy: no map) or with --eval-poses 0."""
+    from robot.mission.evaluation import eval_capture
+
+    posed = [p for p in result.model_photos if p.camera is not None]
+    if n_poses <= 0 or result.robot_map is None or not posed:
+        return None
+    half = posed[0].camera.scaled(0.5)
+    return eval_capture(world, [p.camera for p in posed], [p.photo.image for p in posed], result.robot_map.mesh,
+                        n_poses, np.random.default_rng(seed + 1), half.K, (half.width, half.height),
+                        robot.cam_from_robot)
+
+
+def _achievable(world, robot, n_poses: int) -> float | None:
+    """`robot.mission.coverage.achievable_coverage` of the world with the robot's camera
+    (None with --achievable-poses 0)."""
+    from robot.mission.coverage import CoverageConfig, achievable_coverage
+    from robot.protocol import robot_camera
+
+    if n_poses <= 0:
+        return None
+    at = lambda poses: (robot_camera(p, robot.intrinsics, robot.image_size, robot.cam_from_robot)  # noqa: E731
+                        for p in poses)
+    return achievable_coverage(world.mesh, world.free_space, at, n_poses, config=CoverageConfig())
+
+
 def register(subparsers) -> None:
     e = subparsers.add_parser("explore", help="run a capture strategy in a synthetic scene with a photo "
                               "budget and report surface coverage")
-    e.add_argument("scene", help="synthetic:NAME[?seed=N] (office or courtyard; the world seed defaults to --seed)")
+    e.add_argument("scene", help="synthetic:NAME[?seed=N] (office, apartment or courtyard; the world seed defaults "
+                   "to --seed)")
     e.add_argument("--strategy", choices=("adaptive", "random"), default="adaptive",
                    help="adaptive (next-best views on the map) or random exploration alone")
     add_mission_args(e, 136)
     e.add_argument("--json", default=None, help="write the report here")
+    e.add_argument("--achievable-poses", type=int, default=2000, help="poses of the dense capture whose coverage "
+                   "is reported as achievable_coverage (0: none)")
+    e.add_argument("--eval-poses", type=int, default=50, help="random free-space poses at which ULR renders of the "
+                   "captured model are compared with the world's true renders (0: none; adaptive only)")
     recording.add_rerun_args(e)
     e.set_defaults(func=run)

@@ -2,7 +2,9 @@
 
 From the map of the photos so far (`robot.mission.map_building`), each round:
 1. slices the mesh at the camera height for the free-space boundary and samples random
-   candidate poses inside it (`explore.candidates`);
+   candidate poses inside it (`explore.candidates`), keeping those some photo saw through
+   (`ViewQuality.seen_free`: not behind a wall of the map nor inside furniture), that the
+   robot can reach on the navigation grid, and not near a goal given up before;
 2. scores all candidates in one batched pass of the rendering-quality heuristic
    (`explore.view_quality.ViewQuality`: mean smallest angle between a pixel's desired ray
    and the rays to the source photos that see its point; higher = more to gain);
@@ -15,7 +17,8 @@ From the map of the photos so far (`robot.mission.map_building`), each round:
    (SIFT + RANSAC PnP against the map, `localization.feature_localizer`, as a mixture
    proposal), and an extra photo when the filter's spread grows too large: the plan
    consumes the filter's estimate, never a simulator's truth. On an obstacle it
-   backs off, drives a little off the path and re-plans; after `max_obstacles` obstacles it
+   marks the contact point blocked on the grid (for this and every later plan), backs off,
+   drives a little off the path and re-plans; after `max_obstacles` obstacles it
    gives the goal up and takes the next;
 5. photographs at each goal, localises those photos, and rebuilds the map with them
    (triangulation with the localised poses fixed, Poisson mesh).
@@ -26,15 +29,18 @@ Algorithm code only: what happens is reported to a `MissionObserver`
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import logging
+
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from explore.candidates import free_space_from_mesh, sample_candidates
-from explore.nav_grid import NavGridConfig, nav_grid_from_points
+from explore.nav_grid import NavGridConfig, nav_grid_from_points, reachable_at, reachable_mask
 from explore.path_simplify import plan_path
 from explore.view_quality import ViewQuality, ViewQualityConfig
 from ibr.camera import Camera
+from ibr.errors import InputError
 from ibr.proxy.triangulation import TriangulationConfig, sift_features
 from localization.feature_localizer import FeatureLocalizerConfig, FeatureMap
 from localization.motion_models import wrap_angle
@@ -43,6 +49,8 @@ from robot.mission.map_building import MapConfig, RobotMap, extend_map, stereo_t
 from robot.mission.observer import MissionObserver, MissionPhoto
 from robot.mission.random_stage import Body
 from robot.protocol import Photo, Robot, robot_camera
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -65,6 +73,10 @@ class AdaptiveConfig:
     """Stop when the best candidate's score (mean angle, rad) is below this."""
     max_rounds: int = 6
     """Most rounds of goal selection and map rebuilding."""
+    step_limit_s: float | None = 600.0
+    """A step of a round (choosing goals, driving to one goal and photographing it,
+    rebuilding the map) that takes longer than this (s) is an error (`robot.mission.watchdog`),
+    never a silent stall. Generous: a step takes seconds to a minute on a busy 2-core machine."""
     switch_m: float = 0.3
     """Target-node switching: a path node within this distance counts as passed (m)."""
     reach_m: float = 0.15
@@ -73,6 +85,9 @@ class AdaptiveConfig:
     """Longest straight drive on dead reckoning before re-aiming (m)."""
     max_obstacles: int = 5
     """Obstacles on the way to a goal after which it is given up (the paper's k = 5)."""
+    robot_radius_m: float = 0.15
+    """The robot's footprint radius (m, the robot's own size): a bump blocks the grid cells
+    within this of the contact point (the robot's centre cannot go there)."""
     backoff_m: float = 0.2
     """How far to back up from an obstacle (m)."""
     off_path_m: float = 0.3
@@ -81,6 +96,9 @@ class AdaptiveConfig:
     """Legs after which a goal is given up (a planner or localisation fault never loops forever)."""
     max_path_cost: float = 0.35
     """Grid cells with a (normalised) KDE cost above this are blocked for A*."""
+    grid_seen_margin_m: float = 0.15
+    """A grid cell no photo saw through by this margin (m, `ViewQuality.seen_free`) is
+    blocked: paths keep to the space the photos saw empty."""
     max_fix_jump_m: float = 1.0
     """A PnP fix farther than this from the dead-reckoning estimate is rejected (m)."""
     max_fix_height_err_m: float = 0.15
@@ -126,6 +144,12 @@ class AdaptiveMission:
         self._features: dict[int, object] = {}
         self.fixes = self.failed = self.given_up = 0
         self.goals_reached: list[np.ndarray] = []
+        self.given_up_goals: list[np.ndarray] = []
+        """Goals given up: no candidate is drawn near them again."""
+        self.bumps: list[np.ndarray] = []
+        """Where the bumpers touched something (world xy, m, on the estimate): blocked in every grid."""
+        self._seen_free = None  # the last scorer's `ViewQuality.seen_free` (its sources' depth maps)
+        self.give_up_reason = ""
         self.tracks = stereo_tracks(self._model_cameras(), self._feats, config.localizer.triangulation)
         self.fmap = self._feature_map()
 
@@ -198,29 +222,116 @@ class AdaptiveMission:
 
     # --- goals ----------------------------------------------------------------------------
     def choose_goals(self) -> tuple[np.ndarray, float, object]:
-        """(goals (G, 3) best first, best score, free space) of this round."""
+        """(goals (G, 3) best first, best score, navigation grid) of this round. Candidates
+        are drawn in the free space of the mesh slice (`explore.candidates`) and kept only
+        where (a) some photo saw through them (`ViewQuality.seen_free`: not behind a wall of
+        the map nor inside furniture), (b) the robot can drive to on this round's grid (the
+        component of its cell that A* can search, `explore.nav_grid.reachable_mask`; on the
+        strict grid, else the relaxed one, `nav_grid`), and (c) not near a goal given up
+        before (`given_up_goals`). No candidate left: no goal,
+        best score 0 (the mission stops: "no reachable goal")."""
         c = self.config
         cams = [p.camera for p in self.photos if p.camera is not None and p.stage != "localise"]
         xy = np.array([cam.center[:2] for cam in cams])
         free = free_space_from_mesh(self.map.mesh, self.cam_height, xy)
-        cand = sample_candidates(free, c.n_candidates, self.rng, c.clearance_m)
         vq = ViewQuality(self.map.mesh, cams, config=c.view_quality)
         try:
-            scores = vq.score_poses(cand, self.template, self.robot.cam_from_robot)
+            self._seen_free = vq.seen_free  # numpy only: still usable after release()
+            for strict in (True, False):
+                grid = self.nav_grid(free, strict)
+                cand = self._candidates(free, grid)
+                if len(cand) == 0:
+                    continue
+                clip, eyes = vq.pose_views(cand, self.template, self.robot.cam_from_robot)
+                seen = vq.seen_free(eyes, c.clearance_m)  # not behind the map's walls, nor in furniture
+                log.debug(f"goal choice ({'strict' if strict else 'relaxed'} grid): {len(cand)} reachable "
+                          f"candidates, {int(seen.sum())} where a photo saw free space")
+                cand = cand[seen]
+                if len(cand):
+                    break
+            if len(cand) == 0:
+                self.obs.map(self.map, free)
+                return np.zeros((0, 3)), 0.0, grid
+            scores = vq.score_views(clip[seen], eyes[seen])
         finally:
             vq.release()
         pick = pick_goals(cand, scores, c.goals_per_round, c.goal_separation_m)
         self.obs.map(self.map, free)
         self.obs.candidates(cand, scores, cand[pick])
-        return cand[pick], float(scores.max(initial=0.0)), free
+        return cand[pick], float(scores.max(initial=0.0)), grid
 
-    def nav_grid(self, free):
+    def _candidates(self, free, grid) -> np.ndarray:
+        """(N, 3) candidate poses in `free` (eroded by `clearance_m`) that the robot can reach
+        on `grid` and that are not within `goal_separation_m` of a given-up goal."""
+        c = self.config
+        try:
+            cand = sample_candidates(free, c.n_candidates, self.rng, c.clearance_m)
+        except InputError:  # the free space has no room left after the clearance
+            log.debug("goal choice: the free space has no room left after the clearance")
+            return np.zeros((0, 3))
+        mask = reachable_mask(self._from_here(grid), self.body.est.pose[:2], c.max_path_cost)
+        keep = reachable_at(grid, mask, cand[:, :2])
+        log.debug(f"goal choice: {len(cand)} candidates in the free space ({free.area:.1f} m2), "
+                  f"{int(keep.sum())} reachable ({int(mask.sum())} grid cells)")
+        if self.given_up_goals:
+            bad = np.array(self.given_up_goals)[:, :2]
+            d = np.linalg.norm(cand[:, None, :2] - bad[None], axis=2)
+            keep &= d.min(axis=1) >= c.goal_separation_m
+        return cand[keep]
+
+    def nav_grid(self, free, strict: bool = True):
+        """The KDE grid over the photos' positions and the free space; cells no photo saw
+        through (a table with few points, space behind a wall or a plain wall SfM found no
+        point on) are blocked when `strict` (the robot drives only where its photos saw empty
+        space, and where it stands, `_from_here`), else they cost `max_path_cost`: passable
+        but dear (`choose_goals` relaxes to this when the strict grid reaches no candidate,
+        e.g. where the proxy has holes). The filter's box prior is grown to cover it."""
         cams = np.array([p.estimate[:2] for p in self.photos])
         lo = np.minimum(cams.min(0), np.asarray(free.bounds[:2])) - 0.5
         hi = np.maximum(cams.max(0), np.asarray(free.bounds[2:])) + 0.5
         grid = nav_grid_from_points(self.map.points, (*lo, *hi), self.config.grid)
+        if isinstance(self.body, FilteredBody):
+            self.body.est.grow_prior(np.array([lo, hi]))
+        seen = self._seen_free
+        if seen is not None:
+            H, W = grid.shape
+            xy = grid.cell_to_world(np.indices((H, W)).reshape(2, -1).T)
+            free_cells = seen(np.c_[xy, np.full(len(xy), self.cam_height)], self.config.grid_seen_margin_m)
+            unseen = np.inf if strict else np.maximum(grid.cost, self.config.max_path_cost)
+            grid = replace(grid, cost=np.where(free_cells.reshape(H, W), grid.cost, unseen))
+        grid = self._with_bumps(grid, self.bumps)
         self.obs.grid(grid)
         return grid
+
+    def _with_bumps(self, grid, contacts: list[np.ndarray]):
+        """`grid` with the cells within `robot_radius_m` of each contact point (2,) blocked."""
+        if not contacts:
+            return grid
+        H, W = grid.shape
+        xy = grid.cell_to_world(np.indices((H, W)).reshape(2, -1).T)
+        d = np.linalg.norm(xy[:, None] - np.asarray(contacts)[None], axis=2).min(axis=1)
+        return replace(grid, cost=np.where(d.reshape(H, W) < self.config.robot_radius_m, np.inf, grid.cost))
+
+    def _from_here(self, grid):
+        """`grid` with the cells within `robot_radius_m` plus twice the filter's spread of
+        the estimate that bumps or unseen space blocked (inf) made passable (at
+        `max_path_cost`): the robot stands somewhere there, so A* and the reachable set
+        start from the same free cells even when the estimate is a little off. Cells the
+        map's points make dear stay as they are (a wall near the robot is not opened)."""
+        H, W = grid.shape
+        xy = grid.cell_to_world(np.indices((H, W)).reshape(2, -1).T)
+        r = self.config.robot_radius_m + 2 * self._spread()
+        here = (np.linalg.norm(xy - self.body.est.pose[:2], axis=1) < r).reshape(H, W)
+        return replace(grid, cost=np.where(here & np.isinf(grid.cost), self.config.max_path_cost, grid.cost))
+
+    def _bumped(self, motion, grid):
+        """Remember where the bumper touched (the robot's edge ahead of, or behind, the
+        estimate) and return the grid with it blocked, so the re-plan goes around it."""
+        est = self.body.est.pose
+        ahead = -1.0 if motion.bumper_rear else 1.0
+        contact = est[:2] + ahead * self.config.robot_radius_m * np.array([np.cos(est[2]), np.sin(est[2])])
+        self.bumps.append(contact)
+        return self._with_bumps(grid, [contact])
 
     # --- path following -----------------------------------------------------------------------
     def _aim_and_drive(self, target: np.ndarray):
@@ -239,12 +350,16 @@ class AdaptiveMission:
         self.body.move(drive=c.off_path_m)
 
     def go_to(self, goal: np.ndarray, grid) -> bool:
-        """Drive to goal (3,) on the plan; True when reached."""
+        """Drive to goal (3,) on the plan; True when reached. Why a goal was given up is
+        left in `self.give_up_reason` ("no path", "obstacles", "legs")."""
         c = self.config
         obstacles, legs = 0, 0
+        self.give_up_reason = ""
+        grid = self._with_bumps(grid, self.bumps)  # the obstacles found since the grid was built
         while obstacles <= c.max_obstacles and legs < c.max_legs_per_goal:
-            path = plan_path(grid, self.body.est.pose[:2], goal[:2], max_cost=c.max_path_cost)
+            path = plan_path(self._from_here(grid), self.body.est.pose[:2], goal[:2], max_cost=c.max_path_cost)
             if path is None:
+                self.give_up_reason = "no path"
                 return False
             self.obs.path(path)
             t, blocked = 1, False
@@ -264,6 +379,7 @@ class AdaptiveMission:
                 legs += 1
                 if motion.blocked:
                     obstacles += 1
+                    grid = self._bumped(motion, grid)
                     self._recover(motion)
                     blocked = True
                     break
@@ -271,8 +387,10 @@ class AdaptiveMission:
                 if isinstance(self.body, FilteredBody) and self.body.est.needs_fix():
                     self.take_photo("localise")  # the filter's spread grew: look before going on
             if not blocked:
+                self.give_up_reason = "" if legs < c.max_legs_per_goal else "legs"
                 return legs < c.max_legs_per_goal
             self.take_photo("localise")
+        self.give_up_reason = "obstacles" if obstacles > c.max_obstacles else "legs"
         return False
 
     def _face(self, heading: float) -> None:

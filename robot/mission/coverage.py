@@ -127,3 +127,41 @@ def path_length(poses: np.ndarray) -> float:
     """Length (m) of the polyline through SE(2) or 2-D poses (N, >=2)."""
     xy = np.asarray(poses)[:, :2]
     return float(np.linalg.norm(np.diff(xy, axis=0), axis=1).sum()) if len(xy) > 1 else 0.0
+
+
+def achievable_coverage(mesh: trimesh.Trimesh, free_space, cameras_at, n_poses: int = 2000, n_headings: int = 8,
+                        clearance_m: float = 0.15, config: CoverageConfig = CoverageConfig()) -> float:
+    """The coverage a dense capture of the whole free space reaches: about `n_poses` camera
+    poses, positions on a square grid over `free_space` (shapely, eroded by `clearance_m`,
+    the robot's radius) with `n_headings` evenly spaced headings each; `cameras_at(poses)`
+    turns SE(2) robot poses (N, 3) into cameras (the robot's camera height and intrinsics).
+    A sample counts as covered when some sighting is `min_angle_deg` or more from its first
+    sighting (a lower bound of the exact pairwise test, tight for so dense a set). The
+    ceiling a capture strategy is measured against."""
+    import shapely
+
+    region = free_space.buffer(-clearance_m)
+    n_pos = max(1, n_poses // n_headings)
+    step = np.sqrt(region.area / n_pos)
+    x0, y0, x1, y1 = region.bounds
+    gx, gy = np.meshgrid(np.arange(x0 + step / 2, x1, step), np.arange(y0 + step / 2, y1, step))
+    xy = np.c_[gx.ravel(), gy.ravel()]
+    xy = xy[shapely.contains_xy(region, xy[:, 0], xy[:, 1])]
+    heads = np.linspace(-np.pi, np.pi, n_headings, endpoint=False)
+    poses = np.array([[x, y, h] for x, y in xy for h in heads])
+    samples = surface_samples(mesh, config.n_samples, np.random.default_rng(config.seed))
+    rays = RayMeshIntersector(mesh)
+    first = np.zeros((config.n_samples, 3))
+    seen = np.zeros(config.n_samples, bool)
+    covered = np.zeros(config.n_samples, bool)
+    cos = np.cos(np.radians(config.min_angle_deg))
+    for cam in cameras_at(poses):
+        vis = visible_samples(samples, cam, rays, config.max_range_m)
+        d = cam.center - samples.points[vis]
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        idx = np.flatnonzero(vis)
+        new = ~seen[idx]
+        first[idx[new]] = d[new]
+        seen[idx[new]] = True
+        covered[idx[~new]] |= np.einsum("ij,ij->i", first[idx[~new]], d[~new]) <= cos
+    return float(covered.mean())

@@ -118,7 +118,9 @@ class SessionJournal(MissionJournal):
         state = {"stage": "adaptive", "rounds": result.rounds, "map_file": name, "photos": len(self.session.photos),
                  "particles": loc.pf.particles, "log_w": loc.pf.log_w, "dead_reckoning": loc.dead_reckoning.pose,
                  "path_m": mission.body.path_m, "fixes": mission.fixes, "failed": mission.failed,
-                 "given_up": mission.given_up, "goals": mission.goals_reached, "rng": mission.rng.bit_generator.state}
+                 "given_up": mission.given_up, "goals": mission.goals_reached,
+                 "given_up_goals": mission.given_up_goals, "bumps": mission.bumps,
+                 "rng": mission.rng.bit_generator.state}
         if hasattr(self.robot, "true_pose"):
             state["sim"] = self.robot.state()
             state["sim_rng"] = self.robot.rng.bit_generator.state

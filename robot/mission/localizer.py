@@ -59,7 +59,8 @@ class MissionFilterConfig:
     relocalise_std_m: float = 0.25
     """`needs_fix` when the position spread (sqrt of the largest eigenvalue) exceeds this (m)."""
     margin_m: float = 3.0
-    """The filter's map prior: the box around the mapped cameras grown by this (m)."""
+    """The filter's map prior: the box around the mapped cameras (and, via `grow_prior`, the
+    mission's navigation grid) grown by this (m)."""
 
 
 class MissionLocalizer:
@@ -68,7 +69,7 @@ class MissionLocalizer:
     def __init__(self, start: np.ndarray, bounds_xy: np.ndarray, config: MissionFilterConfig,
                  rng: np.random.Generator, start_std: np.ndarray | None = None):
         self.config = config
-        lo, hi = np.min(bounds_xy, axis=0) - config.margin_m, np.max(bounds_xy, axis=0) + config.margin_m
+        lo, hi = self._box(bounds_xy)
         # alpha_fast == alpha_slow: no random injection, no global re-initialisation (the
         # robot is never kidnapped, and a box prior would scatter particles through walls)
         pf_cfg = ParticleFilterConfig(n_particles=config.n_particles, n_min=150, n_max=1500,
@@ -78,6 +79,20 @@ class MissionLocalizer:
         self.pf.init_gaussian(np.asarray(start, float), np.asarray(config.init_std if start_std is None else start_std))
         self.dead_reckoning = CompassDeadReckoning(np.asarray(start, float).copy())
         self._update_estimate()
+
+    def _box(self, bounds_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        xy = np.asarray(bounds_xy, float).reshape(-1, 2)
+        return xy.min(0) - self.config.margin_m, xy.max(0) + self.config.margin_m
+
+    def grow_prior(self, bounds_xy: np.ndarray) -> None:
+        """Grow the map prior (the box) to cover the points `bounds_xy` (K, 2) (m) plus
+        `margin_m`: as the map grows, the robot is sent beyond the first box, and particles
+        outside it would be zeroed (all of them: the filter would restart uniformly)."""
+        lo, hi = self._box(bounds_xy)
+        x0, y0, x1, y1 = self.pf.free.bounds
+        box = shapely.box(min(lo[0], x0), min(lo[1], y0), max(hi[0], x1), max(hi[1], y1))
+        shapely.prepare(box)
+        self.pf.free = box
 
     def _update_estimate(self) -> None:
         self.mean, self.cov, _ = self.pf.estimate()

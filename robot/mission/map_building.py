@@ -6,8 +6,10 @@ Bundler plays in the paper), made fast for a robot: one shared, known pinhole ca
 refined), few SIFT features per small image, exhaustive matching of the (~100) photos.
 COLMAP's frame is arbitrary, so the model is aligned to the robot's floor frame: the camera
 centres' best-fit plane becomes the plane z = camera height (its normal along the cameras'
-up), then a 2-D similarity (Umeyama) takes the centres onto the dead-reckoning positions,
-which gives metric scale from the odometry and heading from the compass.
+up); the metric scale comes from the floor plane found in the SfM points, which lies the
+camera's (known) height below the cameras (`floor_alignment`; the 2-D similarity onto the
+dead-reckoning positions gives it only when no floor is found); a 2-D rigid fit onto the
+dead-reckoning positions of the whole random stage gives heading (compass) and position.
 
 `extend_map` adds photos whose poses were localised (PnP) later: their SIFT features are
 matched with their stereo partners (`stereo_tracks`) and triangulated with the poses *fixed*
@@ -22,6 +24,8 @@ import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import logging
+
 import cv2
 import numpy as np
 import trimesh
@@ -32,6 +36,9 @@ from ibr.proxy.normals import estimate_normals, remove_outliers
 from ibr.proxy.poisson import PoissonConfig, poisson_mesh
 from ibr.proxy.sfm import colmap_errors_only
 from ibr.proxy.triangulation import TriangulationConfig, pair_tracks
+
+
+log = logging.getLogger(__name__)
 
 
 class MapError(InputError):
@@ -114,7 +121,8 @@ def heading_pairs(headings: np.ndarray, max_diff_rad: float) -> np.ndarray:
 def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, config: MapConfig, work: Path):
     """pycolmap incremental SfM of `images` (H, W, 3) uint8 with the known shared `K`, matching
     only the photos whose compass `headings` (rad) are within `config.match_heading_rad`.
-    Returns the largest reconstruction."""
+    Returns every reconstruction, largest first (photos that share no features, e.g. in two
+    rooms, make separate models; `initial_map` puts each in metres on its own)."""
     import pycolmap
 
     img_dir = work / "images"
@@ -145,21 +153,21 @@ def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, confi
     opts.num_threads, opts.random_seed = config.threads, config.seed
     opts.mapper.num_threads, opts.mapper.random_seed = config.threads, config.seed
     opts.ba_refine_focal_length = opts.ba_refine_principal_point = opts.ba_refine_extra_params = False
-    opts.multiple_models = False
+    opts.multiple_models = True  # photos in different rooms often form separate models
     opts.ba_global_frames_ratio = opts.ba_global_points_ratio = 1.4  # fewer global BAs: ~100 photos
     opts.ba_global_max_num_iterations, opts.ba_local_max_num_iterations = 30, 15
     with colmap_errors_only():
         maps = pycolmap.incremental_mapping(db, img_dir, work / "sparse", opts)
     if not maps:
         raise MapError(f"SfM registered none of the {len(images)} photos (too little texture or overlap?)")
-    rec = max(maps.values(), key=lambda r: r.num_reg_images())
-    if rec.num_reg_images() < config.min_registered:
-        raise MapError(f"SfM registered only {rec.num_reg_images()} of {len(images)} photos; "
+    recs = sorted(maps.values(), key=lambda r: -r.num_reg_images())
+    if recs[0].num_reg_images() < config.min_registered:
+        raise MapError(f"SfM registered only {recs[0].num_reg_images()} of {len(images)} photos; "
                        f"need {config.min_registered}")
-    return rec
+    return recs
 
 
-def _umeyama_2d(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+def umeyama_2d(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
     """Similarity (s, R 2x2, t) minimising |dst - (s R src + t)|^2 for (N, 2) point sets."""
     ms, md = src.mean(0), dst.mean(0)
     a, b = src - ms, dst - md
@@ -170,11 +178,9 @@ def _umeyama_2d(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np
     return s, R, md - s * R @ ms
 
 
-def floor_alignment(centres: np.ndarray, ups: np.ndarray, target_xy: np.ndarray,
-                    camera_height_m: float) -> np.ndarray:
-    """4x4 similarity world_from_sfm taking SfM camera `centres` (N, 3) to the floor frame:
-    their best-fit plane to z = `camera_height_m` (normal along the mean camera `ups`), then
-    the 2-D similarity onto `target_xy` (N, 2), the dead-reckoning positions (metres)."""
+def _level(centres: np.ndarray, ups: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(c0, level): the camera centres' mean and the rotation (rows: new axes) that puts the
+    normal of their best-fit plane (oriented along the mean camera up) on +z."""
     c0 = centres.mean(0)
     _, _, Vt = np.linalg.svd(centres - c0)
     n = Vt[2] if np.linalg.matrix_rank(centres - c0, tol=1e-9) >= 2 else ups.mean(0)
@@ -182,13 +188,79 @@ def floor_alignment(centres: np.ndarray, ups: np.ndarray, target_xy: np.ndarray,
     n /= np.linalg.norm(n)
     x = np.cross([0, 1.0, 0], n) if abs(n[1]) < 0.9 else np.cross([1.0, 0, 0], n)
     x /= np.linalg.norm(x)
-    level = np.stack([x, np.cross(n, x), n])  # rows: new axes; level @ v puts n on +z
+    return c0, np.stack([x, np.cross(n, x), n])
+
+
+def floor_depth(heights: np.ndarray, bin_share: float = 0.01, min_points: int = 12,
+                bottom_share: float = 0.6, contrast: float = 3.0) -> tuple[float, int] | None:
+    """(depth, support): how far below the cameras the floor lies, in the map's units, and
+    how many points support it, from the heights (N,) of the map's points above the cameras'
+    plane (negative below). The floor is the densest horizontal layer at the bottom of the
+    scene: a histogram of the depths in bins of `bin_share` of their 99th percentile (shares:
+    no unit); its fullest bin among the depths beyond `bottom_share` of that percentile
+    (nothing but the floor lies low: a table's top is higher, walls spread their points over
+    every height), refined to the median depth of the points within 1.5 bins of it. None
+    (no floor found) when fewer than `min_points` points lie there, or the layer is not
+    `contrast` times as dense as the other depths around it (a floor SfM saw too little of)."""
+    depth = -np.asarray(heights, float)
+    depth = depth[np.isfinite(depth) & (depth > 0)]
+    if len(depth) < min_points:
+        return None
+    top = float(np.percentile(depth, 99)) * 1.1
+    width = bin_share * top
+    counts, edges = np.histogram(depth, bins=max(int(np.ceil(top / width)), 1), range=(0.0, top))
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    low = np.flatnonzero(centres >= bottom_share * top / 1.1)
+    if len(low) == 0:
+        return None
+    peak = centres[low[np.argmax(counts[low])]]
+    near = np.abs(depth - peak) <= 1.5 * width  # the layer: 3 bins
+    band = np.abs(depth - peak) <= 15 * width  # its surroundings: 30 bins
+    per_bin_around = (band.sum() - near.sum()) / 27.0
+    if near.sum() < min_points or near.sum() / 3.0 < contrast * per_bin_around:
+        return None
+    return float(np.median(depth[near])), int(near.sum())
+
+
+def floor_alignment(centres: np.ndarray, ups: np.ndarray, target_xy: np.ndarray,
+                    camera_height_m: float, points: np.ndarray | None = None,
+                    forwards: np.ndarray | None = None, headings: np.ndarray | None = None) -> tuple[np.ndarray, str]:
+    """(world_from_sfm 4x4 similarity, how the scale was found) taking SfM camera `centres`
+    (N, 3) to the floor frame. Level: the centres' best-fit plane becomes z =
+    `camera_height_m` (normal along the mean camera `ups`). Scale, from what the robot knows:
+    - "floor": the floor plane in the SfM `points` (M, 3) (`floor_depth`) lies the camera's
+      height below the cameras, so s = camera_height_m / depth (independent of odometry),
+      unless the dead reckoning spreads over half the camera height or more and its scale
+      differs by over 25 % (odometry is a few per cent off, so such a floor is wrong);
+    - "odometry": no floor found (or no points): the 2-D similarity (Umeyama) onto
+      `target_xy` (N, 2), the dead-reckoning positions over the whole random stage (metres).
+    Heading: with the cameras' SfM viewing directions `forwards` (N, 3) and their world
+    `headings` (N,) (rad, from the compass), the circular mean of the differences of the
+    levelled yaws (good even for one circle of photos, whose centres barely move); else the
+    2-D fit onto `target_xy`. Position: the centroid of `target_xy` (compass-aided dead
+    reckoning from the known start)."""
+    c0, level = _level(centres, ups)
     p = (centres - c0) @ level.T
-    s, R, t = _umeyama_2d(p[:, :2], target_xy)
+    floor = None
+    if points is not None and len(points):
+        floor = floor_depth(((np.asarray(points, float) - c0) @ level.T)[:, 2])
+    s, R, t = umeyama_2d(p[:, :2], target_xy)
+    how = "odometry"
+    if floor is not None:
+        s_floor = camera_height_m / floor[0]
+        spread = np.sqrt(np.mean(np.sum((target_xy - target_xy.mean(0)) ** 2, axis=1)))
+        # a floor at odds with a well-spread odometry (over half the camera height) is wrong
+        if spread < camera_height_m / 2 or abs(np.log(s_floor / s)) < np.log(1.25):
+            s, how = s_floor, "floor"
+    if forwards is not None and headings is not None:
+        f = np.asarray(forwards, float) @ level.T
+        a = np.angle(np.mean(np.exp(1j * (np.asarray(headings, float) - np.arctan2(f[:, 1], f[:, 0])))))
+        R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    t = target_xy.mean(0) - s * R @ p[:, :2].mean(0)
     S = np.eye(4)
     S[:2, :2], S[:2, 3], S[2, 2], S[2, 3] = s * R, t, s, camera_height_m
     L = rigid(level, -level @ c0)
-    return S @ L
+    return S @ L, how
 
 
 def _transform_camera(cam: Camera, world_from_sfm: np.ndarray) -> Camera:
@@ -209,25 +281,60 @@ def initial_map(images: list[np.ndarray], K: np.ndarray, estimates: np.ndarray, 
         raise MapError(f"{len(images)} photos: SfM needs at least {config.min_registered}")
     work = Path(tempfile.mkdtemp(prefix="ibrnav_sfm_"))
     try:
-        rec = run_sfm(images, K, compass_rad, config, work)
-        cams, idx = {}, []
-        for image in rec.images.values():
-            if image.has_pose:
-                i = int(Path(image.name).stem)
-                cams[i] = Camera.from_pycolmap(image, rec.cameras[image.camera_id])
-                idx.append(i)
-        idx = sorted(idx)
-        centres = np.array([cams[i].center for i in idx])
-        ups = np.array([-cams[i].world_from_cam[:3, 1] for i in idx])
-        cam_xy = np.array([_camera_xy(e, cam_from_robot) for e in np.asarray(estimates)[idx]])
-        world_from_sfm = floor_alignment(centres, ups, cam_xy, float(np.linalg.inv(cam_from_robot)[2, 3]))
-        h, w = images[0].shape[:2]  # COLMAP's K has the half-pixel offset: keep the known K
-        cameras = {i: Camera(K, w, h, _transform_camera(cams[i], world_from_sfm).cam_from_world,
-                             f"photo_{i:05d}") for i in idx}
-        pts, cols, seen_from = _sfm_points(rec, world_from_sfm, cameras)
+        recs = run_sfm(images, K, compass_rad, config, work)
+        h, w = images[0].shape[:2]
+        cameras, parts = {}, []
+        for k, rec in enumerate(recs):
+            placed = _place_model(rec, K, (w, h), estimates, compass_rad, cam_from_robot, largest=k == 0)
+            if placed is not None:
+                cameras.update(placed[0])
+                parts.append(placed[1])
+        pts, cols, seen_from = (np.vstack([q[j] for q in parts]) for j in range(3))
+        log.info(f"initial map: {len(parts)} of {len(recs)} SfM models placed in metres "
+                 f"({[r.num_reg_images() for r in recs]} photos each)")
+        idx = sorted(cameras)
     finally:
         shutil.rmtree(work, ignore_errors=True)
     return _mesh_map(cameras, pts, cols, seen_from, config, registered=len(idx))
+
+
+def _place_model(rec, K: np.ndarray, size: tuple[int, int], estimates: np.ndarray, compass_rad: np.ndarray,
+                 cam_from_robot: np.ndarray, largest: bool):
+    """({index: Camera} in the floor frame, (points, colours, seen_from)) of one SfM model:
+    levelled, in metres by the floor and the camera height, turned by the compass, placed on
+    the dead reckoning (`floor_alignment`). A model with no floor in its points is kept only
+    when it is the largest (its scale then comes from the odometry); else None."""
+    cams = {int(Path(im.name).stem): Camera.from_pycolmap(im, rec.cameras[im.camera_id])
+            for im in rec.images.values() if im.has_pose}
+    idx = sorted(cams)
+    if len(idx) < 3:
+        return None
+    centres = np.array([cams[i].center for i in idx])
+    ups = np.array([-cams[i].world_from_cam[:3, 1] for i in idx])
+    fwd = np.array([cams[i].world_from_cam[:3, 2] for i in idx])
+    est = np.asarray(estimates)[idx]
+    cam_xy = np.array([_camera_xy(e, cam_from_robot) for e in est])
+    heading = np.array([_camera_yaw(np.r_[e[:2], c], cam_from_robot)
+                        for e, c in zip(est, np.asarray(compass_rad)[idx])])
+    sfm_points = np.array([p.xyz for p in rec.points3D.values()]).reshape(-1, 3)
+    world_from_sfm, how = floor_alignment(centres, ups, cam_xy, float(np.linalg.inv(cam_from_robot)[2, 3]),
+                                          sfm_points, fwd, heading)
+    if how != "floor" and not largest:
+        return None
+    log.info(f"initial map: a model of {len(idx)} photos, metric scale from "
+             f"{'the floor plane and the camera height' if how == 'floor' else 'odometry (no floor plane found)'}")
+    w, h = size  # COLMAP's K has the half-pixel offset: keep the known K
+    cameras = {i: Camera(K, w, h, _transform_camera(cams[i], world_from_sfm).cam_from_world, f"photo_{i:05d}")
+               for i in idx}
+    return cameras, _sfm_points(rec, world_from_sfm, cameras)
+
+
+def _camera_yaw(pose: np.ndarray, cam_from_robot: np.ndarray) -> float:
+    """World yaw (rad) of the optical axis of the camera on a robot at SE(2) `pose`."""
+    from robot.protocol import se2_matrix
+
+    f = (se2_matrix(pose) @ np.linalg.inv(cam_from_robot))[:3, 2]
+    return float(np.arctan2(f[1], f[0]))
 
 
 def _camera_xy(pose: np.ndarray, cam_from_robot: np.ndarray) -> np.ndarray:

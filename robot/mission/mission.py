@@ -21,6 +21,7 @@ from robot.mission.localizer import FilteredBody, MissionLocalizer
 from robot.mission.map_building import RobotMap, initial_map
 from robot.mission.observer import MissionObserver, MissionPhoto
 from robot.mission.random_stage import Body, RandomExplorationConfig, random_exploration
+from robot.mission.watchdog import watchdog
 from robot.protocol import Robot
 
 log = logging.getLogger(__name__)
@@ -31,7 +32,7 @@ class MissionResult:
     """photos: every photo in order; robot_map: the final map; path_m: distance driven (m,
     odometry); rounds: adaptive rounds run; goals: (G, 3) goals reached; given_up: goals
     abandoned; fixes/failed_fixes: PnP localisations accepted / failed or rejected;
-    stop_reason: why the adaptive stage ended."""
+    stop_reason: why the adaptive stage ended, in words."""
 
     photos: list[MissionPhoto]
     robot_map: RobotMap | None
@@ -42,6 +43,8 @@ class MissionResult:
     fixes: int = 0
     failed_fixes: int = 0
     stop_reason: str = ""
+    stopped_because: str = ""
+    """complete | budget | no reachable goal (`adaptive_rounds`)."""
 
     @property
     def model_photos(self) -> list[MissionPhoto]:
@@ -112,6 +115,8 @@ def _resume_adaptive(robot: Robot, state: dict, config: AdaptiveConfig, rng: np.
     mission = AdaptiveMission(robot, FilteredBody(robot, loc, state["path_m"]), photos, rmap, config, rng, obs)
     mission.fixes, mission.failed, mission.given_up = state["fixes"], state["failed"], state["given_up"]
     mission.goals_reached = [np.asarray(g, float) for g in state["goals"]]
+    mission.given_up_goals = [np.asarray(g, float) for g in state.get("given_up_goals", [])]
+    mission.bumps = [np.asarray(b, float) for b in state.get("bumps", [])]
     result = MissionResult(photos, rmap, rounds=state["rounds"])
     log.info(f"resumed after adaptive round {state['rounds']}: {len(result.model_photos)} photos, "
                  f"{len(rmap.points)} map points")
@@ -123,8 +128,9 @@ def run_mission(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budge
                 observer: MissionObserver | None = None,
                 random_config: RandomExplorationConfig | None = None, journal=None) -> MissionResult:
     """The whole capture mission: random exploration (`n_random` photos), the initial map,
-    then adaptive rounds until the best candidate's gain is below `config.min_gain_rad`, the
-    model holds `photo_budget` photos, or `config.max_rounds`. `start_pose` (3,) is known.
+    then adaptive rounds until no reachable candidate gains more than `config.min_gain_rad`,
+    none is reachable, the model holds `photo_budget` photos, or `config.max_rounds`
+    (`adaptive_rounds`). `start_pose` (3,) is known.
     `journal` (`robot.mission.journal.SessionJournal`): commit each step to a capture session
     and resume from what it holds (default: neither)."""
     rng = rng or np.random.default_rng(0)
@@ -138,42 +144,67 @@ def run_mission(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budge
                                           config, rng, obs, journal)
     else:
         mission, result = _resume_adaptive(robot, state, config, rng, obs, journal)
-    result.stop_reason = "max rounds"
-    for r in range(result.rounds, config.max_rounds):
-        left = photo_budget - len(result.model_photos)
-        if left <= 0:
-            result.stop_reason = "photo budget"
-            break
-        goals, best, free = mission.choose_goals()
-        log.info(f"round {r + 1}: best candidate gain {np.degrees(best):.1f} deg, {len(goals)} goals, "
-                     f"{len(result.model_photos)} photos")
-        if best < config.min_gain_rad or len(goals) == 0:
-            result.stop_reason = f"gain {np.degrees(best):.2f} deg below threshold"
-            break
-        _adaptive_round(mission, result, goals, mission.nav_grid(free), photo_budget, r, obs)
-        result.rounds = r + 1
-        journal.round_done(mission, result)
+    adaptive_rounds(mission, result, photo_budget, journal)
     result.robot_map, result.path_m = mission.map, mission.body.path_m
     result.goals, result.given_up = mission.goals_reached, mission.given_up
     result.fixes, result.failed_fixes = mission.fixes, mission.failed
     return result
 
 
+def adaptive_rounds(mission: AdaptiveMission, result: MissionResult, photo_budget: int, journal=None) -> None:
+    """Adaptive rounds from `result.rounds` on until the mission stops on its own; sets
+    `result.stopped_because` ("complete": no reachable candidate gains more than
+    `min_gain_rad`; "budget": the photo budget or `max_rounds` is spent; "no reachable goal":
+    no candidate is left that the robot can drive to) and `result.stop_reason` (in words).
+    Each step runs under the watchdog (`AdaptiveConfig.step_limit_s`)."""
+    config = mission.config
+    journal = journal or MissionJournal()
+    result.stopped_because, result.stop_reason = "budget", f"{config.max_rounds} rounds"
+    for r in range(result.rounds, config.max_rounds):
+        if photo_budget - len(result.model_photos) <= 0:
+            result.stop_reason = f"photo budget of {photo_budget} reached"
+            break
+        with watchdog(f"round {r + 1}: choosing goals", config.step_limit_s):
+            goals, best, grid = mission.choose_goals()
+        log.info(f"round {r + 1}: best reachable candidate gains {np.degrees(best):.1f} deg, {len(goals)} goals, "
+                 f"{len(result.model_photos)} photos")
+        if len(goals) == 0:
+            result.stopped_because, result.stop_reason = "no reachable goal", "no candidate the robot can reach"
+            break
+        if best < config.min_gain_rad:
+            result.stopped_because = "complete"
+            result.stop_reason = (f"best reachable gain {np.degrees(best):.2f} deg below "
+                                  f"{np.degrees(config.min_gain_rad):.2f} deg")
+            break
+        _adaptive_round(mission, result, goals, grid, photo_budget, r)
+        result.rounds = r + 1
+        journal.round_done(mission, result)
+    log.info(f"adaptive stage stopped: {result.stopped_because} ({result.stop_reason})")
+
+
 def _adaptive_round(mission: AdaptiveMission, result: MissionResult, goals: np.ndarray, grid, photo_budget: int,
-                    r: int, obs: MissionObserver) -> None:
-    """Visit the round's goals (photos at each one reached) and rebuild the map."""
-    new = []
-    for g in goals:
+                    r: int) -> None:
+    """Visit the round's goals (photos at each one reached) and rebuild the map. A goal
+    given up is remembered (`AdaptiveMission.given_up_goals`): none is drawn near it again."""
+    new, limit = [], mission.config.step_limit_s
+    for k, g in enumerate(goals):
         left = photo_budget - len(result.model_photos)
         if left <= 0:
             break
-        if mission.go_to(g, grid):
-            new += mission.capture_at(g, left)
+        with watchdog(f"round {r + 1}: driving to goal {k + 1} at ({g[0]:.2f}, {g[1]:.2f})", limit):
+            reached = mission.go_to(g, grid)
+            if reached:
+                new += mission.capture_at(g, left)
+        if reached:
             mission.goals_reached.append(g)
         else:
             mission.given_up += 1
-            log.info(f"round {r + 1}: gave up a goal at ({g[0]:.2f}, {g[1]:.2f})")
-    mission.rebuild(new)
+            mission.given_up_goals.append(np.asarray(g, float))
+            est = mission.body.est.pose
+            log.info(f"round {r + 1}: gave up a goal at ({g[0]:.2f}, {g[1]:.2f}) ({mission.give_up_reason}; "
+                     f"estimate ({est[0]:.2f}, {est[1]:.2f}))")
+    with watchdog(f"round {r + 1}: rebuilding the map with {len(new)} photos", limit):
+        mission.rebuild(new)
 
 
 def run_random_only(robot: Robot, start_pose: np.ndarray, photo_budget: int,
@@ -189,4 +220,4 @@ def run_random_only(robot: Robot, start_pose: np.ndarray, photo_budget: int,
         obs.photo(photos[-1])
         if len(photos) % 20 == 0:
             log.info(f"random exploration: {len(photos)}/{photo_budget} photos")
-    return MissionResult(photos, None, path_m=body.path_m, stop_reason="photo budget")
+    return MissionResult(photos, None, path_m=body.path_m, stop_reason="photo budget", stopped_because="budget")

@@ -39,14 +39,32 @@ def test_leaky_mesh_is_sealed(office, camera_xy):
     assert _iou(free_space_from_mesh(mesh, 1.2, camera_xy), office.free_space) > 0.8
 
 
-def test_open_mesh_falls_back_to_camera_hull(office, camera_xy):
+def test_open_mesh_is_closed_by_its_convex_hull(office, camera_xy):
     segs = slice_segments(office.mesh, 1.2)
     open_side = segs[~np.all(np.isclose(segs[:, :, 1], 4.0), axis=1)]  # drop the y = 4 wall
     free, how = free_space_from_slice(open_side, camera_xy)
-    assert how == "hull" and len(open_side) < len(segs)
-    hull = shapely.MultiPoint(camera_xy).convex_hull
+    assert how == "closed" and len(open_side) < len(segs)
     assert shapely.contains_xy(free, camera_xy[:, 0], camera_xy[:, 1]).all()
-    assert free.within(hull.buffer(0.76))
+    # the walls still seen bound it and the hull closes the open side: the room, not the cameras' hull
+    assert _iou(free, free_space_from_slice(segs, camera_xy)[0]) > 0.95
+    assert free.within(shapely.MultiPoint(open_side.reshape(-1, 2)).convex_hull.buffer(1e-6))
+
+
+def test_open_mesh_reaches_past_the_cameras(office, camera_xy):
+    """All photos in the south of the room and the slice open in the north (the demo's first
+    map): the free space still reaches the north wall, so goals can be chosen there."""
+    segs = slice_segments(office.mesh, 1.2)
+    open_side = segs[~np.all(np.isclose(segs[:, :, 1], 4.0), axis=1)]
+    south = camera_xy[camera_xy[:, 1] < -1.5]
+    free, how = free_space_from_slice(open_side, south)
+    assert how == "closed" and free.contains(shapely.Point(0.0, 3.0))
+    assert free.within(shapely.box(-3.0, -4.0, 3.0, 4.0))
+
+
+def test_empty_slice_falls_back_to_camera_hull(camera_xy):
+    free, how = free_space_from_slice(np.zeros((0, 2, 2)), camera_xy)
+    assert how == "hull" and shapely.contains_xy(free, camera_xy[:, 0], camera_xy[:, 1]).all()
+    assert free.within(shapely.MultiPoint(camera_xy).convex_hull.buffer(0.76))
 
 
 def test_candidates_inside_eroded_free_space(office, camera_xy):

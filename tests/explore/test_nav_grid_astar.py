@@ -10,7 +10,7 @@ import trimesh
 from scipy.sparse.csgraph import dijkstra
 
 from explore.astar import GridError, astar, grid_graph, path_cost
-from explore.nav_grid import NavGridConfig, kde_cost, nav_grid_from_points
+from explore.nav_grid import NavGridConfig, kde_cost, nav_grid_from_points, reachable_at, reachable_mask
 from explore.path_simplify import merge_collinear, plan_path, polyline_cost, segment_cost, simplify_path
 
 
@@ -135,3 +135,19 @@ def test_plan_path_in_office_avoids_furniture(office):
     assert office.free_space.buffer(-0.05).contains(line)
     with pytest.raises(GridError, match="goal"):
         plan_path(grid, (0, 0), (10.0, 0.0))
+
+
+def test_reachable_mask_is_what_astar_can_reach():
+    """A wall of points splits the grid in two: the robot's side is reachable, the other is
+    not, and A* agrees cell by cell (reachable <=> a path exists)."""
+    wall = np.array([[2.0, y, 0.5] for y in np.linspace(0, 4, 200)] * 3)
+    grid = nav_grid_from_points(wall, (0.0, 0.0, 4.0, 4.0), NavGridConfig(cells_long_side=40))
+    mask = reachable_mask(grid, (0.5, 2.0), max_cost=0.35)
+    xy = np.array([[0.5, 0.5], [1.2, 3.5], [3.0, 2.0], [3.6, 0.4]])
+    assert reachable_at(grid, mask, xy).tolist() == [True, True, False, False]
+    for p, ok in zip(xy, reachable_at(grid, mask, xy)):
+        assert (plan_path(grid, (0.5, 2.0), p, max_cost=0.35) is not None) == ok
+    # from the other side, the other half
+    other = reachable_mask(grid, (3.5, 2.0), max_cost=0.35)
+    assert reachable_at(grid, other, xy).tolist() == [False, False, True, True]
+    assert not (mask & other).any()

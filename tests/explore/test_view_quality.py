@@ -137,3 +137,17 @@ def test_background_score_counts_missing_proxy(office, gl_ctx):
     score, frac = holes.score_views(*views)[0], plain[1]
     assert 0.2 < frac < 0.8  # the floor fills part of the view, the rest is a "hole"
     assert score == pytest.approx(frac * plain[0] + (1 - frac) * np.pi, abs=1e-6)
+
+
+def test_seen_free_is_the_space_the_photos_saw_through(office, vq):
+    """Known answers in the office (sources at 1.2 m looking out from the centre): the space
+    just ahead of each source was seen through; points behind the walls, inside the cabinet
+    or the shelf (taller than 1.2 m) were not, whatever a free-space slice would say."""
+    sources = office.default_cameras(24, 160, 120)
+    ahead = np.array([c.center + 0.6 * c.world_from_cam[:3, 2] for c in sources])
+    assert vq.seen_free(ahead, margin_m=0.2).mean() > 0.9
+    outside = np.array([[3.4, 0.0], [-3.4, 1.0], [0.5, 4.4], [0.0, -4.5], [5.0, 5.0]])
+    solid = np.array([[2.75, -0.2], [2.7, 0.3], [0.0, 3.85], [-0.6, 3.8]])  # cabinet, shelf
+    for pts in (outside, solid):
+        assert not vq.seen_free(np.c_[pts, np.full(len(pts), 1.2)], margin_m=0.2).any()
+    assert vq.seen_free(np.zeros((0, 3))).shape == (0,)

@@ -8,6 +8,7 @@ import pytest
 import shapely
 
 from explore.candidates import sample_candidates
+from explore.path_simplify import plan_path
 from ibr.synthetic import make_world
 from robot.mission.adaptive import AdaptiveConfig, AdaptiveMission, pick_goals, start_filter
 from robot.mission.coverage import surface_samples
@@ -69,18 +70,20 @@ def test_pick_goals_takes_the_best_spread_apart():
 
 def test_goals_lie_in_the_free_space_and_score_best(office):
     m, robot, _ = office
-    goals, best, free = m.choose_goals()
+    goals, best, grid = m.choose_goals()
     assert 1 <= len(goals) <= m.config.goals_per_round
     assert best > 0
     world_free = robot.world.free_space
     assert shapely.contains_xy(world_free, goals[:, 0], goals[:, 1]).all()
-    assert free.area > 10  # the 6 x 8 m room minus furniture, sliced from the true mesh
+    # every goal is reachable: A* finds a path to it on the round's grid
+    assert all(plan_path(grid, m.body.est.pose[:2], g[:2], max_cost=m.config.max_path_cost) is not None
+               for g in goals)
 
 
 def test_goes_to_a_goal_on_the_localisers_estimate(office):
     m, robot, obs = office
-    _, _, free = m.choose_goals()
-    grid = m.nav_grid(free)
+    _, _, grid = m.choose_goals()
+    free = robot.world.free_space
     # a goal 1-2.5 m away, where the map's photos saw enough to localise against
     cand = sample_candidates(free, 200, np.random.default_rng(5), 0.4)
     d = np.hypot(*(cand[:, :2] - m.body.est.pose[:2]).T)
@@ -117,7 +120,60 @@ def test_gives_a_goal_up_after_k_obstacles(office, monkeypatch):
 
     monkeypatch.setattr(robot, "drive", always_bumps)
     monkeypatch.setattr(m, "config", replace(m.config, off_path_m=0.2, max_obstacles=5))
-    goals, _, free = m.choose_goals()
+    goals, _, grid = m.choose_goals()
     far = goals[np.argmax(np.hypot(*(goals[:, :2] - m.body.est.pose[:2]).T))]
-    assert not m.go_to(far, m.nav_grid(free))
-    assert len(drives) == 6  # k = 5 obstacles survived, the 6th gives up
+    try:
+        assert not m.go_to(far, grid) and m.give_up_reason == "obstacles"
+        assert len(drives) == 6  # k = 5 obstacles survived, the 6th gives up
+        # each contact was remembered and is blocked for every later plan
+        assert len(m.bumps) == 6 and np.isinf(m._with_bumps(grid, m.bumps).cost_at(np.array(m.bumps))).all()
+    finally:
+        m.bumps = []
+
+
+def fenced(m: AdaptiveMission, radius_m: float) -> AdaptiveMission:
+    """The mission with a ring of dense map points (a fence 0.2-1.0 m high) around the robot's
+    estimate: the navigation grid blocks it, so nothing outside is reachable."""
+    a = np.linspace(0, 2 * np.pi, 400, endpoint=False)
+    z = np.linspace(0.2, 1.0, 5)
+    ring = np.array([[*(m.body.est.pose[:2] + radius_m * np.array([np.cos(t), np.sin(t)])), h] for t in a for h in z])
+    pts = np.r_[m.map.points, ring]
+    rmap = replace(m.map, points=pts, colors=np.zeros((len(pts), 3), np.uint8), normals=np.zeros((len(pts), 3)))
+    return AdaptiveMission(m.robot, m.body, list(m.photos), rmap, m.config, np.random.default_rng(4), MissionObserver())
+
+
+def test_a_goal_behind_a_wall_is_not_drawn(office):
+    """Candidates the robot cannot drive to (outside a fence of map points around it,
+    whatever the slice of the mesh says) are never goals; inside the fence they are."""
+    m, _, _ = office
+    inside = fenced(m, 1.6)
+    goals, _, _ = inside.choose_goals()
+    assert len(goals) and np.hypot(*(goals[:, :2] - m.body.est.pose[:2]).T).max() < 1.6
+
+
+def test_a_given_up_goal_is_not_drawn_again(office):
+    m, _, _ = office
+    goals, _, _ = m.choose_goals()
+    m.given_up_goals = list(goals)
+    try:
+        again, _, _ = m.choose_goals()
+        d = np.linalg.norm(again[:, None, :2] - goals[None, :, :2], axis=2)
+        assert len(again) and d.min() >= m.config.goal_separation_m
+    finally:
+        m.given_up_goals = []
+
+
+def test_a_mission_that_can_reach_no_goal_stops(office):
+    """The robot fenced in tightly (and the spot inside given up before): no candidate is
+    reachable, the adaptive stage stops at once with "no reachable goal" instead of giving
+    goals up round after round."""
+    from robot.mission.mission import MissionResult, adaptive_rounds
+
+    m, _, _ = office
+    trapped = fenced(m, 0.4)
+    trapped.given_up_goals = [m.body.est.pose.copy()]  # the little room inside was tried before
+    result = MissionResult(list(trapped.photos), trapped.map)
+    n = len(trapped.photos)
+    adaptive_rounds(trapped, result, photo_budget=n + 50)
+    assert result.stopped_because == "no reachable goal" and result.rounds == 0
+    assert len(trapped.photos) == n and trapped.given_up == 0

@@ -54,3 +54,51 @@ def test_range_and_occlusion_hide_samples():
 
 def test_path_length():
     assert path_length(np.array([[0, 0, 0], [3, 4, 1], [3, 0, 0.0]])) == pytest.approx(9.0)
+
+
+def test_eval_capture_of_the_true_photos_is_near_perfect():
+    """eval-capture measures what it claims: the world's own photos at the query poses over
+    its true mesh render the query views back (high PSNR and SSIM, all covered), while
+    photos from elsewhere over the same mesh do much worse."""
+    import shapely
+
+    from explore.candidates import sample_candidates
+    from ibr.synthetic import make_world
+    from robot.mission.evaluation import eval_capture
+    from robot.protocol import robot_camera
+    from robot.sim_robot import SimRobot, SimRobotConfig
+
+    world = make_world("office", 0)
+    rng = np.random.default_rng(0)
+    robot = SimRobot(world, SimRobotConfig(image_size=(96, 72)), rng, start_pose=tuple(world.start_pose(rng)))
+    poses = sample_candidates(world.free_space, 6, np.random.default_rng(7), 0.15)
+    cams = [robot_camera(p, robot.intrinsics, robot.image_size, robot.cam_from_robot) for p in poses]
+    images = [world.photograph(c) for c in cams]
+    args = (robot.intrinsics, robot.image_size, robot.cam_from_robot)
+    good = eval_capture(world, cams, images, world.mesh, 6, np.random.default_rng(7), *args)
+    assert good["poses"] == 6 and good["covered"]["worst_decile"] > 0.95
+    assert good["psnr_db"]["worst_decile"] > 30 and good["ssim"]["mean"] > 0.9
+    other = eval_capture(world, cams[:2], images[:2], world.mesh, 6, np.random.default_rng(8), *args)
+    assert other["psnr_db"]["mean"] < good["psnr_db"]["mean"] - 5
+    assert shapely.contains_xy(world.free_space, poses[:, 0], poses[:, 1]).all()
+
+
+def test_achievable_coverage_bounds_any_capture():
+    """The dense capture of the whole free space covers at least what a loop of photos does,
+    and most of the office (whose free space reaches every wall)."""
+    from ibr.synthetic import loop_route, make_world
+    from robot.mission.coverage import CoverageConfig, achievable_coverage, coverage_curve
+    from robot.protocol import robot_camera
+    from robot.sim_robot import SimRobot, SimRobotConfig
+
+    world = make_world("office", 0)
+    robot = SimRobot(world, SimRobotConfig(image_size=(96, 72)), np.random.default_rng(0),
+                     start_pose=(*loop_route(world)[0], 0.0))
+    cfg = CoverageConfig(n_samples=2000)
+    at = lambda poses: [robot_camera(p, robot.intrinsics, robot.image_size, robot.cam_from_robot)  # noqa: E731
+                        for p in poses]
+    best = achievable_coverage(world.mesh, world.free_space, at, n_poses=400, config=cfg)
+    loop = loop_route(world)
+    heads = np.arctan2(*np.diff(np.vstack([loop, loop[:1]]), axis=0).T[::-1])
+    some = coverage_curve(world.mesh, at(np.c_[loop, heads]), cfg)[-1]
+    assert best >= some and best > 0.6

@@ -57,3 +57,22 @@ def test_pnp_fix_pulls_a_wrong_estimate_back():
     for _ in range(2):
         loc.update_pnp(np.array([0.0, 0.0, 0.05]), 100)
     assert np.hypot(*loc.pose[:2]) < 0.1 and abs(loc.pose[2] - 0.05) < np.radians(3)
+
+
+def drive_east(loc: MissionLocalizer, metres: float) -> None:
+    """Odometry of `metres` straight east in 0.5 m moves, compass 0."""
+    for x in np.arange(0.0, metres, 0.5):
+        loc.predict(np.array([x, 0.0, 0.0]), np.array([x + 0.5, 0.0, 0.0]), 0.0)
+
+
+def test_grown_prior_keeps_the_track_beyond_the_first_box():
+    """The box prior is the start +- 3 m: driving 5 m east leaves it and the filter restarts
+    uniformly unless the prior was grown to where the robot is sent."""
+    start, std = np.zeros(3), np.array([0.05, 0.05, 0.02])
+    lost = MissionLocalizer(start, np.zeros((1, 2)), MissionFilterConfig(), np.random.default_rng(0), std)
+    drive_east(lost, 5.0)
+    kept = MissionLocalizer(start, np.zeros((1, 2)), MissionFilterConfig(), np.random.default_rng(0), std)
+    kept.grow_prior(np.array([[0.0, 0.0], [5.0, 0.0]]))
+    drive_east(kept, 5.0)
+    assert np.hypot(kept.pose[0] - 5.0, kept.pose[1]) < 0.3 and kept.spread_m < 0.5
+    assert np.hypot(lost.pose[0] - 5.0, lost.pose[1]) > 1.0 and lost.spread_m > 1.0

@@ -22,8 +22,8 @@ from robot.session import KILL_ENV, CaptureSession, load_session_scene
 from robot.sim_robot import SimRobot, SimRobotConfig
 
 BIN = Path(sys.executable).parent
-DEMO = ["demo", "--random-photos", "36", "--circle-step-deg", "20", "--photos", "40", "--width", "240",
-        "--height", "180", "--max-rounds", "2", "--goals-per-round", "2", "--tour-frames", "0"]
+DEMO = ["demo", "--world", "office", "--random-photos", "36", "--circle-step-deg", "20", "--photos", "40", "--width", "240",
+        "--height", "180", "--max-rounds", "4", "--goals-per-round", "2", "--tour-frames", "0"]
 
 
 def demo(session: Path, kill_at: str | None = None) -> subprocess.CompletedProcess:
@@ -63,8 +63,8 @@ def test_demo_killed_twice_resumes_to_the_planned_capture(tmp_path):
             assert [log[i + 1]["kind"], log[i + 2]["kind"]] == ["evaluation", "estimate"]
     stages = [r["state"]["stage"] for r in log if r["kind"] == "commit"]
     assert stages[:36] == ["random"] * 36 and stages[-1] == "finished"
-    assert [r["state"]["rounds"] for r in log if r["kind"] == "commit" and r["state"]["stage"] == "adaptive"] \
-        == [0, 1]
+    rounds = [r["state"]["rounds"] for r in log if r["kind"] == "commit" and r["state"]["stage"] == "adaptive"]
+    assert rounds == list(range(len(rounds))) and len(rounds) >= 2  # each round once (more when goals are given up)
     assert len(load_session_scene(folder).views) == len(photos)
     again = demo(folder)
     assert again.returncode == 0 and "already finished" in again.stdout

@@ -1,0 +1,103 @@
+"""How well a simulated capture mission did, against the simulator's truth (which the mission
+itself never reads): the localisation error of the adaptive stage's photos, the map's scale
+error, the rooms the robot photographed. Used by `ibrnav explore --json`.
+Frames: world SE(2) poses (x, y, theta), metres, radians.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from localization.motion_models import wrap_angle
+from robot.mission.map_building import RobotMap, umeyama_2d
+from robot.mission.observer import MissionPhoto
+from robot.protocol import se2_matrix
+
+
+def true_poses(truth: list[dict]) -> dict[int, np.ndarray]:
+    """{photo index: true SE(2) pose} from a `SimRobot.truth` list."""
+    return {int(t["index"]): np.asarray(t["pose"], float) for t in truth}
+
+
+def localisation_errors(photos: list[MissionPhoto], truth: dict[int, np.ndarray]) -> dict | None:
+    """Position error (m: median, p95, max) and heading error (deg: median, p95) of the
+    robot's estimate at each photo of the adaptive stage (goal and localisation photos:
+    the filter's estimate right after the photo's vision fix), against the truth; None
+    when the mission has no adaptive photo."""
+    adaptive = [p for p in photos if p.stage != "random" and p.photo.index in truth]
+    if not adaptive:
+        return None
+    est = np.array([p.estimate for p in adaptive])
+    true = np.array([truth[p.photo.index] for p in adaptive])
+    d = np.hypot(*(est[:, :2] - true[:, :2]).T)
+    h = np.degrees(np.abs(wrap_angle(est[:, 2] - true[:, 2])))
+    return {"photos": len(d), "median": float(np.median(d)), "p95": float(np.percentile(d, 95)),
+            "max": float(d.max()), "heading_median_deg": float(np.median(h)),
+            "heading_p95_deg": float(np.percentile(h, 95))}
+
+
+def map_scale_error(robot_map: RobotMap | None, truth: dict[int, np.ndarray], cam_from_robot: np.ndarray,
+                    photos: list[MissionPhoto]) -> float | None:
+    """|s - 1| of the 2-D similarity (Umeyama) from the map's camera centres of the random
+    stage's photos (posed by SfM) onto their true centres: 0 for a map in metres. None
+    without at least 3 such photos."""
+    if robot_map is None:
+        return None
+    idx = [i for i in robot_map.cameras if i < len(photos) and photos[i].stage == "random"
+           and photos[i].photo.index in truth]
+    if len(idx) < 3:
+        return None
+    mapped = np.array([robot_map.cameras[i].center[:2] for i in idx])
+    true = np.array([(se2_matrix(truth[photos[i].photo.index]) @ np.linalg.inv(cam_from_robot))[:2, 3]
+                     for i in idx])
+    s, _, _ = umeyama_2d(mapped, true)
+    return float(abs(s - 1.0))
+
+
+def rooms_visited(world, photos: list[MissionPhoto], truth: dict[int, np.ndarray]) -> tuple[list[str], list[str]]:
+    """(rooms where a model photo was taken, every room of the world; corridors excluded)."""
+    rooms = [r.name for r in world.rooms if r.kind == "room"]
+    seen = {world.room_at(truth[p.photo.index][:2]) for p in photos
+            if p.stage != "localise" and p.photo.index in truth}
+    return [r for r in rooms if r in seen], rooms
+
+
+def eval_capture(world, cameras: list, images: list[np.ndarray], mesh, n_poses: int, rng: np.random.Generator,
+                 intrinsics: np.ndarray, size: tuple[int, int], cam_from_robot: np.ndarray,
+                 clearance_m: float = 0.15, ctx=None) -> dict:
+    """What the capture is for: new views. ULR renders (`ibr.render.ulr`) of the captured
+    model (posed `cameras`, their `images`, the proxy `mesh`) at `n_poses` random robot
+    poses in the world's free space (eroded by `clearance_m`, the robot's radius; random
+    headings; the robot's camera height and intrinsics at `size` (w, h)) against the world's
+    true renders: PSNR (dB) and SSIM over the covered pixels, and the covered fraction; mean
+    and worst decile (the mean of the worst 10 %) of each. Views ULR covers nowhere count
+    with a covered fraction of 0 and no PSNR/SSIM."""
+    from explore.candidates import sample_candidates
+    from ibr.render.eval import psnr, ssim
+    from ibr.render.ulr import UlrRenderer
+    from ibr.scene import Scene, View
+    from robot.protocol import robot_camera
+
+    poses = sample_candidates(world.free_space, n_poses, rng, clearance_m)
+    ulr = UlrRenderer(Scene("capture", [View(c, im) for c, im in zip(cameras, images)]), mesh, ctx)
+    p, s, cov = [], [], []
+    try:
+        for k, pose in enumerate(poses):
+            cam = robot_camera(pose, intrinsics, size, cam_from_robot, name=f"eval_{k:03d}")
+            truth = world.photograph(cam, ctx)
+            image, covered = ulr.render(cam)
+            cov.append(float(covered.mean()))
+            if covered.any():
+                p.append(psnr(image, truth, covered))
+                s.append(ssim(image, truth, covered))
+    finally:
+        ulr.release()
+
+    def summary(v: list[float], higher_better: bool = True) -> dict:
+        v = np.sort(np.asarray([x for x in v if np.isfinite(x)], float))
+        if len(v) == 0:
+            return {"mean": None, "worst_decile": None}
+        worst = v[:max(1, len(v) // 10)] if higher_better else v[-max(1, len(v) // 10):]
+        return {"mean": float(v.mean()), "worst_decile": float(worst.mean())}
+
+    return {"poses": len(poses), "psnr_db": summary(p), "ssim": summary(s), "covered": summary(cov)}
