@@ -30,7 +30,8 @@ def test_demo_runs_the_capture_mission_into_a_recording_and_a_session(tmp_path):
                  "--session", capture, "--save", rrd)
     assert run.returncode == 0, run.stderr
     captured = int(re.search(r"captured (\d+) photos", run.stdout).group(1))
-    assert 40 < captured <= 44  # the budget, less 2 photos per goal given up in the one round
+    assert 40 <= captured <= 44  # the budget, less 2 photos per goal given up in the one round (COLMAP
+    # varies from run to run: in some runs both goals of the round are given up)
     assert "initial map:" in run.stderr and "round 1:" in run.stderr  # progress on stderr
     printed = rrd_entities(rrd)
     for entity in ("/world/robot/camera/image", "/world/robot", "/world/estimate", "/world/map/points",

@@ -16,7 +16,7 @@ CHEAP = {
     "drive": (["drive", "--max-legs", "1", "--width", "32", "--height", "24"],
               {("3D", "world", "world"), ("2D", "observed", "world/robot/camera"), ("TimeSeries", "error", "plots")},
               {"plots/estimate_error_m": 1}),
-    "eval-track": (["eval-track", "--trials", "1", "--steps", "2", "--particles", "50", "--max-particles", "100"],
+    "eval-track": (["eval-track", "--trials", "1", "--steps", "2", "--particles", "50"],
                    {("3D", "world", "world"), ("2D", "observed", "localization/observed"),
                     ("2D", "rendered", "localization/rendered_at_estimate"), ("TimeSeries", "particles", "plots")},
                    {"plots/particles": 2, "plots/estimate_error_m": 2}),
