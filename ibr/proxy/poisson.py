@@ -23,6 +23,10 @@ class MeshingError(InputError):
     """The points could not be meshed (too few, or Poisson produced nothing)."""
 
 
+MIN_POINTS = 50
+"""Fewest points the Poisson solve is given (fewer cannot outline a surface)."""
+
+
 @dataclass(frozen=True)
 class PoissonConfig:
     """Settings of `poisson_mesh`."""
@@ -60,8 +64,8 @@ def poisson_mesh(points: np.ndarray, normals: np.ndarray, colors: np.ndarray,
     """Screened Poisson mesh of (N, 3) points with unit normals and uint8 colours."""
     import pycolmap
 
-    if len(points) < 50:
-        raise MeshingError(f"only {len(points)} points to mesh; need at least 50")
+    if len(points) < MIN_POINTS:
+        raise MeshingError(f"only {len(points)} points to mesh; need at least {MIN_POINTS}")
     with tempfile.TemporaryDirectory() as tmp:
         src, dst = Path(tmp) / "points.ply", Path(tmp) / "mesh.ply"
         write_oriented_ply(src, points, normals, colors)

@@ -31,7 +31,7 @@ import trimesh
 
 from ibr.proxy.dense_points import DenseConfig, dense_points
 from ibr.proxy.normals import estimate_normals, remove_outliers
-from ibr.proxy.poisson import PoissonConfig, poisson_mesh
+from ibr.proxy.poisson import MIN_POINTS, MeshingError, PoissonConfig, poisson_mesh
 from ibr.scene import Scene
 from ibr.proxy.triangulation import TriangulationConfig, sift_features, triangulate_views
 
@@ -99,6 +99,10 @@ def triangulated_points(scene: Scene, cfg: ProxyConfig) -> tuple[np.ndarray, np.
     """Cleaned points (N, 3), colours (N, 3) uint8 and oriented normals (N, 3) of the scene."""
     feats = [sift_features(v.image, cfg.triangulation.n_features) for v in scene.views]
     tri = triangulate_views(scene.cameras, feats, cfg.triangulation)
+    if len(tri.points) < MIN_POINTS:
+        raise MeshingError(f"scene {scene.name!r}: only {len(tri.points)} points triangulated from its "
+                           f"{len(scene)} photos; a proxy needs at least {MIN_POINTS} (more photos, more "
+                           "overlap between them, or larger images)")
     keep = remove_outliers(tri.points)
     pts, cols, pairs = tri.points[keep], tri.colors[keep], tri.view_pairs[keep]
     centres = np.array([c.center for c in scene.cameras])

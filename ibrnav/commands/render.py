@@ -11,7 +11,7 @@ from ibr.errors import InputError
 from ibrnav import recording
 from ibrnav.commands.scene import SCENE_HELP
 
-CLI_METHODS = ("ulr", "nearest", "lightfield", "lightfield-local")
+CLI_METHODS = ("ulr", "ulr-pixel", "nearest", "lightfield", "lightfield-local")
 log = logging.getLogger(__name__)
 
 
@@ -102,7 +102,8 @@ def run(args: argparse.Namespace) -> int:
 def register(subparsers) -> None:
     p = subparsers.add_parser("render", help="render novel views of a scene (ULR, light field, nearest view)")
     p.add_argument("scene", help=SCENE_HELP)
-    p.add_argument("--method", choices=CLI_METHODS, default="ulr", help="the renderer")
+    p.add_argument("--method", choices=CLI_METHODS, default="ulr",
+                   help="the renderer (ulr: Buehler's blending field; ulr-pixel: its weights at every pixel)")
     where = p.add_mutually_exclusive_group(required=True)
     where.add_argument("--camera", help="a Strecha .camera file of the virtual camera")
     where.add_argument("--from-view", help="render at this view's camera")

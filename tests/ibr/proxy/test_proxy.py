@@ -100,3 +100,11 @@ def test_proxy_from_photos_lies_on_the_true_surface(gl_ctx, small_office, tmp_pa
     both = (true > 0) & (est > 0)
     assert both.mean() > 0.3
     assert np.median(np.abs(est[both] - true[both]) / true[both]) < 0.03
+
+
+def test_a_scene_too_small_to_triangulate_is_one_error_naming_it():
+    """8 photos of 160x120 give SIFT almost nothing to triangulate: the error names the scene
+    and says what to change, instead of a numpy reduction error."""
+    scene = load_scene("synthetic:office?views=8&width=160&height=120")
+    with pytest.raises(MeshingError, match=r"synthetic:office.*points triangulated"):
+        build_proxy(scene, use_cache=False)
