@@ -28,10 +28,8 @@ from scipy.spatial.transform import Rotation
 
 from ibr.camera import Camera
 from ibr.mesh_renderer import Light, MeshRenderer
-from localization.model_trust import luminance_at
-from localization.render_likelihood import LikelihoodConfig, pixel_weights, robust_terms
-
-LUMA = np.array([0.299, 0.587, 0.114], np.float32)
+from localization.render_likelihood import (LUMA, LikelihoodConfig, comparison_camera, luminance, pixel_weights,
+                                            robust_terms, truncation)
 
 
 @dataclass(frozen=True)
@@ -64,17 +62,9 @@ class Alignment:
     hessian: np.ndarray | None = None
 
 
-def comparison_camera(camera: Camera, width: int) -> Camera:
-    """`camera` at `width` pixels wide, the height following its aspect (never squashed)."""
-    return camera.scaled(width / camera.width)
-
-
 def observed_at(image: np.ndarray, camera: Camera) -> np.ndarray:
     """(h, w) luminance of the photo at the camera's size."""
-    lum = luminance_at(image, camera.width)
-    if lum.shape != (camera.height, camera.width):
-        lum = cv2.resize(lum, (camera.width, camera.height), interpolation=cv2.INTER_AREA)
-    return lum
+    return luminance(image, (camera.width, camera.height))
 
 
 def render_terms(model: MeshRenderer, camera: Camera, light: Light | None, edge_jump: float):
@@ -142,7 +132,7 @@ def align_at_width(model: MeshRenderer, image: np.ndarray, camera: Camera, T: np
                    config: AlignConfig, lik: LikelihoodConfig, light: Light | None) -> Alignment:
     """Levenberg-Marquardt on the pose at one width (`camera` sized, pose ignored)."""
     o = observed_at(image, camera)
-    tau = max(float(o.std()), lik.min_tau)
+    tau = truncation(o, lik)
     blurred = cv2.GaussianBlur(o, (0, 0), config.blur_px)
     grad = (cv2.Sobel(blurred, cv2.CV_32F, 1, 0, ksize=3) / 8.0, cv2.Sobel(blurred, cv2.CV_32F, 0, 1, ksize=3) / 8.0)
     r, depth, w = render_terms(model, camera.with_pose(T), light, lik.edge_jump)

@@ -61,22 +61,20 @@ def novel_queries(scene: Scene, n: int, rng: np.random.Generator, depth_m: float
                   turn_deg: float = 10.0) -> list[View]:
     """n photos of a synthetic scene's world from new poses near its map photos: a map photo's
     camera moved by up to `offset` x the scene's depth `depth_m` (metres, `median_point_depth`)
-    per horizontal axis (and a tenth of that
-    vertically) and turned by up to `turn_deg`, its centre kept in the world's free space.
+    per horizontal axis (and a tenth of that vertically) and turned by up to `turn_deg`, its
+    centre kept in the world's free space.
     They are not in the map, as a robot's photo when it comes back is not."""
     free = scene.world.free_space
     views = []
     while len(views) < n:
         cam = scene.cameras[int(rng.integers(len(scene)))]
         shift = rng.uniform(-offset, offset, 3) * depth_m * np.array([1.0, 1.0, 0.1])
-        pose = cam_from_world_of(sample_around(cam.cam_from_world, 1, 0.0, np.radians(turn_deg), rng))[0]
-        moved = cam.with_pose(pose, f"query_{len(views):03d}")
-        centre = moved.center + shift
+        T = cam_from_world_of(sample_around(cam.cam_from_world, 1, 0.0, np.radians(turn_deg), rng))[0]
+        centre = cam.center + shift
         if not free.contains(shapely.Point(centre[:2])):
             continue
-        T = pose.copy()
         T[:3, 3] = -T[:3, :3] @ centre
-        query = moved.with_pose(T)
+        query = cam.with_pose(T, f"query_{len(views):03d}")
         views.append(View(query, scene.world.photograph(query)))
     return views
 
@@ -91,14 +89,23 @@ def evaluate_localization(scene: Scene, method: str, trials: int, spread_m: floa
     Returns the JSON-ready summary (`summarise`) and per-trial rows (errors null when no
     pose was returned, the verdict and its reason). on_trial(i, query_view, LocResult, row)
     is called after each trial."""
-    if queries == "novel":
-        return evaluate_novel(scene, method, trials, spread_m, spread_deg, seed, config, on_trial)
     if method not in METHODS:
         raise LocalizeError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
-    if len(scene) < 3:
-        raise LocalizeError(f"scene {scene.name!r} has {len(scene)} views; leave-one-out needs at least 3")
     if trials < 1:
         raise LocalizeError(f"--trials must be at least 1, got {trials}")
+    runs = {"held-out": evaluate_held_out, "novel": evaluate_novel}
+    if queries not in runs:
+        raise LocalizeError(f"unknown queries {queries!r}; choose from {', '.join(runs)}")
+    rows = runs[queries](scene, method, trials, spread_m, spread_deg, seed, config, on_trial)
+    return {"scene": scene.name, "method": method, "queries": queries, "trials": trials, "spread_m": spread_m,
+            "spread_deg": spread_deg, "seed": seed, **summarise(rows), "per_trial": rows}
+
+
+def evaluate_held_out(scene: Scene, method: str, trials: int, spread_m: float, spread_deg: float,
+                      seed: int, config: LocConfig, on_trial: Callable | None) -> list[dict]:
+    """The rows of `evaluate_localization` with queries "held-out" (leave-one-out)."""
+    if len(scene) < 3:
+        raise LocalizeError(f"scene {scene.name!r} has {len(scene)} views; leave-one-out needs at least 3")
     feats = None
     if method != "pf":
         log.info(f"SIFT features of {len(scene)} photos")
@@ -115,46 +122,40 @@ def evaluate_localization(scene: Scene, method: str, trials: int, spread_m: floa
             localizers.clear()
             others = [f for j, f in enumerate(feats) if j != k] if feats else None
             localizers[k] = SceneLocalizer(scene.without(held.name), method, config, others)
-        rng = np.random.default_rng(seed + i)
-        truth = held.camera.cam_from_world
-        prior = draw_prior(truth, spread_m, spread_deg, rng)
-        res = localizers[k].localize(held.image, held.camera, prior, spread_m, spread_deg, rng)
-        rows.append(trial_row(i, held.name, res, truth, config))
-        r = rows[-1]
-        log.info(f"[{i + 1}/{trials}] {held.name}: {r['position_m']} m, {r['rotation_deg']} deg, "
-                 f"{'localised' if r['localized'] else 'not localised: ' + r['reason']}, "
-                 f"confidence {r['confidence']:.2f}, {res.seconds:.2f} s")
-        if on_trial:
-            on_trial(i, held, res, r)
+        rows.append(query_trial(localizers[k], i, trials, held, spread_m, spread_deg, seed, config, on_trial))
     for loc in localizers.values():
         loc.release()
-    return {"scene": scene.name, "method": method, "queries": "held-out", "trials": trials, "spread_m": spread_m,
-            "spread_deg": spread_deg, "seed": seed, **summarise(rows), "per_trial": rows}
+    return rows
 
 
 def evaluate_novel(scene: Scene, method: str, trials: int, spread_m: float, spread_deg: float,
-                   seed: int, config: LocConfig, on_trial: Callable | None) -> dict:
-    """`evaluate_localization` with queries "novel": one map of every view, new photos."""
+                   seed: int, config: LocConfig, on_trial: Callable | None) -> list[dict]:
+    """The rows of `evaluate_localization` with queries "novel": one map of every view, new photos."""
     if scene.world is None:
         raise LocalizeError(f"scene {scene.name!r}: novel queries need a synthetic world to photograph")
-    if trials < 1:
-        raise LocalizeError(f"--trials must be at least 1, got {trials}")
     queries = novel_queries(scene, trials, np.random.default_rng(seed), median_point_depth(scene))
     loc = SceneLocalizer(scene, method, config)
-    rows = []
-    for i in progress(range(trials), desc="queries", logger=log):
-        held = queries[i]
-        rng = np.random.default_rng(seed + i)
-        truth = held.camera.cam_from_world
-        prior = draw_prior(truth, spread_m, spread_deg, rng)
-        res = loc.localize(held.image, held.camera, prior, spread_m, spread_deg, rng)
-        rows.append(trial_row(i, held.name, res, truth, config))
-        log.info(f"[{i + 1}/{trials}] {held.name}: {rows[-1]['position_m']} m, localised {rows[-1]['localized']}")
-        if on_trial:
-            on_trial(i, held, res, rows[-1])
+    rows = [query_trial(loc, i, trials, queries[i], spread_m, spread_deg, seed, config, on_trial)
+            for i in progress(range(trials), desc="queries", logger=log)]
     loc.release()
-    return {"scene": scene.name, "method": method, "queries": "novel", "trials": trials, "spread_m": spread_m,
-            "spread_deg": spread_deg, "seed": seed, **summarise(rows), "per_trial": rows}
+    return rows
+
+
+def query_trial(loc: SceneLocalizer, i: int, trials: int, query: View, spread_m: float, spread_deg: float,
+                seed: int, config: LocConfig, on_trial: Callable | None) -> dict:
+    """Trial i: `query` localised from a prior drawn around its true pose (seed + i); its row
+    (`trial_row`), logged and passed to on_trial(i, query, LocResult, row)."""
+    rng = np.random.default_rng(seed + i)
+    truth = query.camera.cam_from_world
+    prior = draw_prior(truth, spread_m, spread_deg, rng)
+    res = loc.localize(query.image, query.camera, prior, spread_m, spread_deg, rng)
+    row = trial_row(i, query.name, res, truth, config)
+    log.info(f"[{i + 1}/{trials}] {query.name}: {row['position_m']} m, {row['rotation_deg']} deg, "
+             f"{'localised' if row['localized'] else 'not localised: ' + row['reason']}, "
+             f"confidence {row['confidence']:.2f}, {res.seconds:.2f} s")
+    if on_trial:
+        on_trial(i, query, res, row)
+    return row
 
 
 def trial_row(i: int, name: str, res, truth: np.ndarray, config: LocConfig) -> dict:

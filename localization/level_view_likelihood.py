@@ -31,9 +31,7 @@ import numpy as np
 from ibr.camera import Camera
 from ibr.mesh_renderer import Light, MeshRenderer
 from localization.pose_views import se2_views
-from localization.render_likelihood import luminance
-
-LUMA = np.array([0.299, 0.587, 0.114], np.float32)
+from localization.render_likelihood import LUMA, luminance
 
 
 def horizon_free(lum: np.ndarray) -> np.ndarray:

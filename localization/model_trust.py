@@ -23,12 +23,12 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 from scipy.ndimage import map_coordinates
 from scipy.spatial import cKDTree
 
 from ibr.camera import Camera
+from localization.render_likelihood import comparison_camera, luminance
 
 
 @dataclass(frozen=True)
@@ -48,13 +48,6 @@ class TrustConfig:
     ground truth (office and courtyard, seed 1): faces within 8 px of a point are off the
     true surface by more than 5 % of their depth in at most 1 % of cases, 8-16 px in up to
     2 %, 16-32 px in 3-28 % (and by more than 2 % in 6-19 % at 8-16 px)."""
-
-
-def luminance_at(image: np.ndarray, width: int) -> np.ndarray:
-    """(h, w) float32 luminance in [0, 1] of an (H, W, 3) uint8 photo resized to `width`."""
-    h = round(image.shape[0] * width / image.shape[1])
-    small = cv2.resize(image, (width, h), interpolation=cv2.INTER_AREA).astype(np.float32) / 255.0
-    return small @ np.array([0.299, 0.587, 0.114], np.float32)
 
 
 def face_patches(centroids: np.ndarray, normals: np.ndarray, camera: Camera, half: int) -> np.ndarray:
@@ -139,8 +132,7 @@ def face_trust(centroids: np.ndarray, normals: np.ndarray, visibility: np.ndarra
     """(F,) trust in [0, 1] of each face: `photo_consistency` x `geometric_support`, with the
     photos compared at `config.work_width`. cameras: the photos' cameras (any size);
     visibility (F, N): `photo_texture.face_visibility` scores."""
-    small = [c.scaled(config.work_width / c.width) for c in cameras]
-    lums = [luminance_at(im, config.work_width) for im in images]
-    small = [Camera(s.K, lum.shape[1], lum.shape[0], s.cam_from_world) for s, lum in zip(small, lums)]
+    small = [comparison_camera(c, config.work_width) for c in cameras]
+    lums = [luminance(im, (c.width, c.height)) for c, im in zip(small, images)]
     consistency = photo_consistency(centroids, normals, visibility, small, lums, config)
     return consistency * geometric_support(centroids, visibility, small, points, config)

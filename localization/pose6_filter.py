@@ -37,7 +37,7 @@ from scipy.spatial.transform import Rotation
 
 from ibr.camera import Camera, rigid
 from localization.particle_filter import numpy_random_from
-from localization.render_likelihood import BatchedLikelihood
+from localization.render_likelihood import BatchedLikelihood, comparison_camera
 
 
 @dataclass(frozen=True)
@@ -70,11 +70,6 @@ class Pose6FilterConfig:
     """Fraction of particles perturbed widely every step."""
     widths: tuple[int, ...] = (24, 48)
     """Comparison widths in pixels, coarse to fine, each used for an equal share of the steps."""
-
-
-def comparison_camera(camera: Camera, width: int) -> Camera:
-    """`camera` scaled to `width` pixels wide, its height following the aspect."""
-    return camera.scaled(width / camera.width)
 
 
 def annealing_temperature(cost: np.ndarray, ess_fraction: float, bounds: tuple[float, float]) -> float:

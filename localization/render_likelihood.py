@@ -58,10 +58,25 @@ class LikelihoodConfig:
     exposure; beyond it, or negative, a match is not a change of exposure)."""
 
 
+LUMA = np.array([0.299, 0.587, 0.114], np.float32)
+"""Rec. 601 weights of R, G, B in luminance: every comparison of a photo with a render uses them."""
+
+
 def luminance(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     """(H, W, 3) uint8 -> (h, w) float32 luminance in [0, 1] at `size` (area-averaged)."""
     small = cv2.resize(image, size, interpolation=cv2.INTER_AREA).astype(np.float32) / 255.0
-    return small @ np.array([0.299, 0.587, 0.114], np.float32)
+    return small @ LUMA
+
+
+def comparison_camera(camera: Camera, width: int) -> Camera:
+    """`camera` scaled to `width` pixels wide, its height following the aspect (never squashed)."""
+    return camera.scaled(width / camera.width)
+
+
+def truncation(observed: np.ndarray, config: LikelihoodConfig) -> float:
+    """tau of the robust cost for an observed luminance image: its standard deviation, at
+    least `config.min_tau`."""
+    return max(float(observed.std()), config.min_tau)
 
 
 def scores_to_loglik(scores: np.ndarray, config: LikelihoodConfig, temperature: float | None = None) -> np.ndarray:
@@ -123,7 +138,7 @@ class BatchedLikelihood:
         """The camera image (H, W, 3) uint8 to compare with, at `size` (default config.size)."""
         size = size or self.config.size
         lum = luminance(image, size)
-        self.tau = max(float(lum.std()), self.config.min_tau)
+        self.tau = truncation(lum, self.config)
         if self._observed is None or self._observed.size != size:
             if self._observed is not None:
                 self._observed.release()
@@ -213,11 +228,11 @@ def reference_tile_scores(renderer: MeshRenderer, cameras: list[Camera], observe
     """The naive path, for tests and the benchmark: one render + read-back per camera and
     the same statistics in numpy. observed: (h, w) luminance at the cameras' size."""
     out = np.zeros((len(cameras), 4), np.float32)
-    tau = max(float(observed.std()), config.min_tau)
+    tau = truncation(observed, config)
     for k, cam in enumerate(cameras):
         g = renderer.render(cam, light)
         m = g.depth > 0
-        lum = g.color.astype(np.float32) / 255.0 @ np.array([0.299, 0.587, 0.114], np.float32)
+        lum = g.color.astype(np.float32) / 255.0 @ LUMA
         w = pixel_weights(g.depth, g.trust, config.edge_jump)
         cost = robust_cost(lum, observed, w, tau, config.gain)
         r, o, n = lum[m], observed[m], m.sum()

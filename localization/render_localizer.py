@@ -30,13 +30,13 @@ from scipy.spatial.transform import Rotation
 from ibr.camera import Camera
 from ibr.mesh_renderer import Light, MeshRenderer
 from localization.confidence import ConfidenceConfig, Verdict, judge
-from localization.direct_alignment import (AlignConfig, Alignment, comparison_camera, evaluate_pose, observed_at,
-                                           refine_pose)
+from localization.direct_alignment import AlignConfig, Alignment, evaluate_pose, observed_at, refine_pose
 from localization.lean_model import lean_mesh
 from localization.model_trust import TrustConfig
 from localization.photo_texture import PhotoTexture
 from localization.pose6_filter import (Pose6Estimate, Pose6Filter, Pose6FilterConfig, PriorBox, cam_from_world_of)
-from localization.render_likelihood import BatchedLikelihood, LikelihoodConfig, likelihood_renderer
+from localization.render_likelihood import (BatchedLikelihood, LikelihoodConfig, comparison_camera,
+                                            likelihood_renderer, truncation)
 
 
 @dataclass(frozen=True)
@@ -141,7 +141,7 @@ class RenderModel:
             cam = comparison_camera(self.cameras[i], min(width, self.cameras[i].width))
             self.fine.focus(cam.center, exclude=i)
             o = observed_at(self.images[i], cam)
-            tau = max(float(o.std()), self.config.likelihood.min_tau)
+            tau = truncation(o, self.config.likelihood)
             values.append(evaluate_pose(self.fine.renderer, o, cam, tau, self.config.likelihood, self.light).explained)
         return float(np.median(values))
 

@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     from scipy.spatial.transform import Rotation
 
     from ibr import viz as ibr_viz
-    from ibr.progress import progress
+    from ibr.progress import counter
     from ibr.scene import load_scene, read_image
     from localization import viz
     from localization.localize import LocConfig, SceneLocalizer
@@ -67,12 +67,12 @@ def run(args: argparse.Namespace) -> int:
     recording.rerun_setup(args, "ibrnav_localize", "localize.rrd")
     if loc.model is not None:
         ibr_viz.log_mesh("world/map/mesh", loc.model.fine.mesh)  # what the filter renders
-    steps = progress(range(loc.config.render.filter.steps), desc="filter steps", logger=log)
+    steps = counter(loc.config.render.filter.steps, "filter steps", log)
 
     def on_step(k, particles, weights):
         rr.set_time("step", sequence=k)
         viz.log_pose6_particles(particles[:, :3], weights)
-        steps.update(1)
+        steps.update()
     res = loc.localize(image, camera, prior, spread_m, spread_deg, np.random.default_rng(args.seed), on_step)
     steps.close()
     out = {"query": args.query, "method": args.method, "seconds": round(res.seconds, 3),

@@ -22,21 +22,22 @@ def test_a_bad_scene_spec_is_one_line_naming_it(spec):
     assert run.stderr.count("\n") == 1 and spec in run.stderr and "Traceback" not in run.stderr
 
 
-def test_explore_runs_with_a_seeded_spec(tmp_path):
+def random_explore(tmp_path, spec: str, photos: int, achievable_poses: int) -> dict:
+    """`ibrnav explore SPEC --strategy random` at a photo budget; its --json report."""
     out = tmp_path / "explore.json"
-    run = ibrnav("explore", "synthetic:office?seed=3", "--strategy", "random", "--photos", 3, "--json", out,
-                 "--achievable-poses", 0)
+    run = ibrnav("explore", spec, "--strategy", "random", "--photos", photos, "--json", out,
+                 "--achievable-poses", achievable_poses)
     assert run.returncode == 0, run.stderr
-    report = json.loads(out.read_text())
+    return json.loads(out.read_text())
+
+
+def test_explore_runs_with_a_seeded_spec(tmp_path):
+    report = random_explore(tmp_path, "synthetic:office?seed=3", 3, 0)
     assert report["scene"] == "synthetic:office?seed=3" and report["photos"] == 3
 
 
 def test_explore_in_an_apartment_reports_rooms_and_why_it_stopped(tmp_path):
-    out = tmp_path / "explore.json"
-    run = ibrnav("explore", "synthetic:apartment?seed=5", "--strategy", "random", "--photos", 4, "--json", out,
-                 "--achievable-poses", 80)
-    assert run.returncode == 0, run.stderr
-    report = json.loads(out.read_text())
+    report = random_explore(tmp_path, "synthetic:apartment?seed=5", 4, 80)
     assert report["stopped_because"] == "budget" and report["photos"] == 4
     assert len(report["rooms"]) >= 2 and len(report["rooms_visited"]) == 1  # 4 photos: one circle, one room
     assert set(report["rooms_visited"]) <= set(report["rooms"])

@@ -7,11 +7,10 @@ import pytest
 from scipy.ndimage import map_coordinates
 
 from ibr.scene import load_scene
-from localization.direct_alignment import (comparison_camera, observed_at, photometric_jacobian, refine_pose,
-                                           render_terms, se3_step)
+from localization.direct_alignment import observed_at, photometric_jacobian, refine_pose, render_terms, se3_step
 from localization.feature_localizer import pose_errors
 from localization.pose6_filter import apply_offsets, cam_from_world_of, particles_from_cam_from_world
-from localization.render_likelihood import LikelihoodConfig, likelihood_renderer
+from localization.render_likelihood import LikelihoodConfig, comparison_camera, likelihood_renderer
 
 
 @pytest.fixture(scope="module")
