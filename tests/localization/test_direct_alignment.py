@@ -14,7 +14,7 @@ from localization.render_likelihood import LikelihoodConfig, comparison_camera, 
 
 
 @pytest.fixture(scope="module")
-def office(gl_ctx):
+def office_model(gl_ctx):
     scene = load_scene("synthetic:office?views=10&width=320&height=240")
     return scene, likelihood_renderer(scene.mesh, gl_ctx), scene.world.light
 
@@ -23,8 +23,8 @@ def offset_pose(T, offset):
     return cam_from_world_of(apply_offsets(particles_from_cam_from_world(T), np.array([offset])))[0]
 
 
-def test_gauss_newton_converges_from_several_cm_and_degrees(office):
-    scene, renderer, light = office
+def test_gauss_newton_converges_from_several_cm_and_degrees(office_model):
+    scene, renderer, light = office_model
     for k, offset in ((3, [0.05, -0.03, 0.04, 0.02, -0.01, 0.015]), (6, [-0.04, 0.05, 0.0, -0.015, 0.02, 0.0])):
         view = scene.views[k]
         start = offset_pose(view.camera.cam_from_world, offset)
@@ -35,10 +35,10 @@ def test_gauss_newton_converges_from_several_cm_and_degrees(office):
         assert result.explained > 0.9
 
 
-def test_the_jacobian_matches_finite_differences_of_the_photo(office):
+def test_the_jacobian_matches_finite_differences_of_the_photo(office_model):
     """For a small step along each of the 6 pose axes, J xi predicts how the (blurred) photo's
     luminance at the model's pixels changes when the pixels' 3-D points move by the step."""
-    scene, renderer, light = office
+    scene, renderer, light = office_model
     view = scene.views[3]
     cam = comparison_camera(view.camera, 96)
     o = cv2.GaussianBlur(observed_at(view.image, cam), (0, 0), 1.0)
