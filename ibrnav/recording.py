@@ -22,7 +22,7 @@ SINK_FLAGS = ("save", "connect", "serve", "stdout", "headless", "serve_web", "se
 COMMAND_ENTITY = "meta/command"
 ERROR_PLOTS = ("plots/estimate_error_m", "plots/estimate_error_deg", "plots/dead_reckoning_error_m",
                "plots/position_error_m", "plots/rotation_error_deg")
-COVERAGE_PLOTS = ("plots/coverage", "plots/render/**", "plots/vueplan/**")
+COVERAGE_PLOTS = ("plots/coverage", "plots/render/**", "plots/vueplan/**", "plots/eval/**")
 PARTICLE_PLOTS = ("plots/particles",)
 log = logging.getLogger(__name__)
 
@@ -65,6 +65,7 @@ BLUEPRINTS = {
     "ibrnav_demo": MISSION, "ibrnav_drive": dict(observed=MISSION["observed"]), "ibrnav_explore": MISSION,
     "ibrnav_eval_track": TRACKING, "ibrnav_localize": {**TRACKING, "plots": False},
     "ibrnav_eval_loc": TRACKING, "ibrnav_render": dict(rendered="world/render"),
+    "ibrnav_eval_capture": dict(observed="world/eval/true", rendered="world/eval/ulr"),
     "ibrnav_scene_show": dict(plots=False),
     "ibrnav_scenic": dict(observed="world/cameras/agent0", rendered="world/cameras/agent1"),
 }

@@ -1,10 +1,13 @@
 """How well a simulated capture mission did, against the simulator's truth (which the mission
 itself never reads): the localisation error of the adaptive stage's photos, the map's scale
-error, the rooms the robot photographed. Used by `ibrnav explore --json`.
+error, the rooms the robot photographed, and the new views its model renders
+(`eval_capture`). Used by `ibrnav explore --json` and `ibrnav eval-capture`.
 Frames: world SE(2) poses (x, y, theta), metres, radians.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 
@@ -12,6 +15,12 @@ from localization.motion_models import wrap_angle
 from robot.mission.map_building import RobotMap, umeyama_2d
 from robot.mission.observer import MissionPhoto
 from robot.protocol import se2_matrix
+
+PSNR_CEILING_DB = float(10 * np.log10(255.0 ** 2 * 12))
+"""The PSNR of a view rendered exactly (zero error) counts as this (58.9 dB): the PSNR of
+an error as small as 8-bit rounding itself (variance 1/12 grey level squared), so a perfect
+view is the best score rather than an infinity the summaries would have to drop. A property
+of 8-bit images, not of any scene."""
 
 
 def true_poses(truth: list[dict]) -> dict[int, np.ndarray]:
@@ -62,42 +71,62 @@ def rooms_visited(world, photos: list[MissionPhoto], truth: dict[int, np.ndarray
     return [r for r in rooms if r in seen], rooms
 
 
+def evaluation_poses(world, n_poses: int, rng: np.random.Generator, clearance_m: float = 0.15) -> np.ndarray:
+    """(n_poses, 3) random robot poses (x, y, theta) in the world's free space eroded by
+    `clearance_m` (the robot's radius, m), random headings: where `eval_capture` looks."""
+    from explore.candidates import sample_candidates
+
+    return sample_candidates(world.free_space, n_poses, rng, clearance_m)
+
+
 def eval_capture(world, cameras: list, images: list[np.ndarray], mesh, n_poses: int, rng: np.random.Generator,
                  intrinsics: np.ndarray, size: tuple[int, int], cam_from_robot: np.ndarray,
-                 clearance_m: float = 0.15, ctx=None) -> dict:
+                 clearance_m: float = 0.15, ctx=None, on_view: Callable | None = None,
+                 ulr_config=None) -> dict:
     """What the capture is for: new views. ULR renders (`ibr.render.ulr`) of the captured
     model (posed `cameras`, their `images`, the proxy `mesh`) at `n_poses` random robot
-    poses in the world's free space (eroded by `clearance_m`, the robot's radius; random
-    headings; the robot's camera height and intrinsics at `size` (w, h)) against the world's
-    true renders: PSNR (dB) and SSIM over the covered pixels, and the covered fraction; mean
-    and worst decile (the mean of the worst 10 %) of each. Views ULR covers nowhere count
-    with a covered fraction of 0 and no PSNR/SSIM."""
-    from explore.candidates import sample_candidates
+    poses in the world's free space (`evaluation_poses`; the robot's camera height and
+    intrinsics at `size` (w, h)) against the world's true renders: PSNR (dB) and SSIM over
+    the covered pixels (at most `PSNR_CEILING_DB`), and the covered fraction; mean and worst
+    decile (the mean of the worst 10 %) of each. Views ULR covers nowhere count with a
+    covered fraction of 0 and no PSNR/SSIM. `on_view(k, pose (3,), camera, rendered, truth, metrics)` is called after each
+    view (`metrics`: {"psnr_db", "ssim", "covered"}, None where nothing is covered): for
+    progress, logging and per-view reports. `ulr_config` (`ibr.render.ulr.UlrConfig`): the
+    renderer's settings (default: the sparse blending field; blending="pixel" is the quality
+    reference)."""
     from ibr.render.eval import psnr, ssim
     from ibr.render.ulr import UlrRenderer
     from ibr.scene import Scene, View
     from robot.protocol import robot_camera
 
-    poses = sample_candidates(world.free_space, n_poses, rng, clearance_m)
-    ulr = UlrRenderer(Scene("capture", [View(c, im) for c, im in zip(cameras, images)]), mesh, ctx)
+    poses = evaluation_poses(world, n_poses, rng, clearance_m)
+    ulr = UlrRenderer(Scene("capture", [View(c, im) for c, im in zip(cameras, images)]), mesh, ctx,
+                      config=ulr_config)
     p, s, cov = [], [], []
     try:
         for k, pose in enumerate(poses):
             cam = robot_camera(pose, intrinsics, size, cam_from_robot, name=f"eval_{k:03d}")
             truth = world.photograph(cam, ctx)
             image, covered = ulr.render(cam)
-            cov.append(float(covered.mean()))
+            m = {"psnr_db": None, "ssim": None, "covered": float(covered.mean())}
             if covered.any():
-                p.append(psnr(image, truth, covered))
-                s.append(ssim(image, truth, covered))
+                m["psnr_db"] = min(float(psnr(image, truth, covered)), PSNR_CEILING_DB)
+                m["ssim"] = float(ssim(image, truth, covered))
+                p.append(m["psnr_db"])
+                s.append(m["ssim"])
+            cov.append(m["covered"])
+            if on_view is not None:
+                on_view(k, pose, cam, image, truth, m)
     finally:
         ulr.release()
+    return {"poses": len(poses), "psnr_db": _mean_and_worst_decile(p), "ssim": _mean_and_worst_decile(s),
+            "covered": _mean_and_worst_decile(cov)}
 
-    def summary(v: list[float], higher_better: bool = True) -> dict:
-        v = np.sort(np.asarray([x for x in v if np.isfinite(x)], float))
-        if len(v) == 0:
-            return {"mean": None, "worst_decile": None}
-        worst = v[:max(1, len(v) // 10)] if higher_better else v[-max(1, len(v) // 10):]
-        return {"mean": float(v.mean()), "worst_decile": float(worst.mean())}
 
-    return {"poses": len(poses), "psnr_db": summary(p), "ssim": summary(s), "covered": summary(cov)}
+def _mean_and_worst_decile(values: list[float]) -> dict:
+    """{"mean", "worst_decile"} of the finite values (higher is better: the worst decile is
+    the mean of the lowest 10 %, at least one value); None for both when there is none."""
+    v = np.sort(np.asarray([x for x in values if np.isfinite(x)], float))
+    if len(v) == 0:
+        return {"mean": None, "worst_decile": None}
+    return {"mean": float(v.mean()), "worst_decile": float(v[:max(1, len(v) // 10)].mean())}

@@ -1,7 +1,8 @@
 """Rerun logging of the capture mission: the robot's map (`world/map/points`,
 `world/map/mesh`, replaced per rebuild), where the map put each photo (`world/cameras/<name>`),
-the virtual tour (`world/tour/camera`), and the evaluation plots (`plots/coverage`,
-`plots/photos`, `plots/dead_reckoning_error_m`)."""
+the virtual tour (`world/tour/camera`), the evaluation plots (`plots/coverage`,
+`plots/photos`, `plots/dead_reckoning_error_m`) and eval-capture's views (`world/eval/true`
+beside `world/eval/ulr`, `plots/eval/*` per view on the `step` timeline)."""
 
 from __future__ import annotations
 
@@ -37,3 +38,15 @@ def log_tour_frame(camera: Camera, image: np.ndarray) -> None:
 def log_dead_reckoning_error(dead_reckoning: np.ndarray, truth: np.ndarray) -> None:
     """plots/dead_reckoning_error_m: the baseline's position error, beside the filter's."""
     rr.log("plots/dead_reckoning_error_m", rr.Scalars(float(np.hypot(*(dead_reckoning[:2] - truth[:2])))))
+
+
+def log_eval_view(k: int, camera: Camera, rendered: np.ndarray, truth: np.ndarray, metrics: dict) -> None:
+    """eval-capture's view `k` (step timeline): the world's true render at `world/eval/true`,
+    the model's ULR render at `world/eval/ulr`, and its `metrics` (psnr_db, ssim, covered;
+    None where nothing was covered) at `plots/eval/<name>`."""
+    rr.set_time("step", sequence=k)
+    log_camera("world/eval/true", camera, truth)
+    log_camera("world/eval/ulr", camera, rendered)
+    for name, value in metrics.items():
+        if value is not None and np.isfinite(value):
+            rr.log(f"plots/eval/{name}", rr.Scalars(float(value)))

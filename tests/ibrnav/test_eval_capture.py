@@ -1,0 +1,87 @@
+"""`ibrnav eval-capture SESSION`: a session whose final model is the world's own photos at
+the evaluation poses over the true mesh renders those views back (the command measures what
+it claims); the world comes from the session's meta or --world; a session without a final
+model or without a world is one error naming the folder."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from ibr.errors import InputError
+from robot.protocol import Photo, robot_camera
+from robot.session import CaptureSession
+
+SIZE = (96, 72)
+POSES, SEED = 4, 1  # eval-capture --poses 4 --seed 1
+
+
+def _make_session(folder, world, poses, meta: dict, model: bool):
+    """A session of the true photos at `poses` (the robot's camera), logged at their true
+    poses; with `model`, a final model of them over the world's true mesh."""
+    from robot.sim_robot import SimRobot, SimRobotConfig
+
+    robot = SimRobot(world, SimRobotConfig(image_size=SIZE), np.random.default_rng(0), start_pose=tuple(poses[0]))
+    cams = [robot_camera(p, robot.intrinsics, SIZE, robot.cam_from_robot, name=f"photo_{i:05d}")
+            for i, p in enumerate(poses)]
+    with CaptureSession.create(folder, robot.intrinsics, SIZE, robot.cam_from_robot, meta) as s:
+        for i, (pose, cam) in enumerate(zip(poses, cams)):
+            s.add_photo(Photo(world.photograph(cam), float(i), pose, pose[2], 1.0, i), pose=pose)
+        if model:
+            pts = world.mesh.sample(300, return_index=False)
+            s.write_model(cams, world.mesh, pts, np.full((len(pts), 3), 200, np.uint8))
+    return folder
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory, office, gl_ctx):
+    """A finished demo-like session in the office (seed 0): photos at eval-capture's poses."""
+    from robot.mission.evaluation import evaluation_poses
+
+    poses = evaluation_poses(office, POSES, np.random.default_rng(SEED))
+    meta = {"command": "demo", "world": "office", "seed": 0, "robot": "sim"}
+    return _make_session(tmp_path_factory.mktemp("evalcap") / "session", office, poses, meta, model=True)
+
+
+def test_true_photos_at_the_query_poses_render_back(session, tmp_path, ibrnav_command):
+    from ibrnav.recording import recording_scalars
+
+    out, rrd = tmp_path / "eval.json", tmp_path / "eval.rrd"
+    assert ibrnav_command("eval-capture", session, "--poses", POSES, "--seed", SEED, "--scale", 1,
+                          "--method", "ulr-pixel", "--json", out, "--save", rrd) == 0
+    r = json.loads(out.read_text())
+    assert r["world"] == "synthetic:office?seed=0" and r["poses"] == POSES == len(r["views"])
+    assert r["photos"] == POSES and r["size"] == list(SIZE)
+    assert r["covered"]["worst_decile"] > 0.95 and r["psnr_db"]["worst_decile"] > 30 and r["ssim"]["mean"] > 0.9
+    assert all(v["psnr_db"] > 30 for v in r["views"])
+    plots = recording_scalars(rrd)
+    assert plots["plots/eval/covered"].notna().sum() == POSES
+
+
+def test_model_folder_and_world_override(session, tmp_path, ibrnav_command):
+    """The model/ folder names its session; --world replaces the recorded world: the same
+    photos judged against another office seed (furniture moved) score lower."""
+    out = tmp_path / "other.json"
+    assert ibrnav_command("eval-capture", session / "model", "--poses", POSES, "--seed", SEED, "--scale", 1,
+                          "--world", "synthetic:office?seed=5", "--json", out) == 0
+    r = json.loads(out.read_text())
+    assert r["world"] == "synthetic:office?seed=5" and r["session"] == str(session)
+    assert r["psnr_db"]["mean"] < 30
+
+
+def test_a_session_without_a_model_or_a_world_is_one_error_naming_it(session, tmp_path, office, ibrnav_command):
+    killed = _make_session(tmp_path / "killed", office, np.array([[0.0, -2.0, 0.0]]), {"world": "office"},
+                           model=False)
+    with pytest.raises(InputError, match=f"{killed}: the session has no final model"):
+        ibrnav_command("eval-capture", killed)
+    nameless = tmp_path / "nameless"
+    shutil.copytree(session, nameless)
+    info = json.loads((nameless / "session.json").read_text())
+    (nameless / "session.json").write_text(json.dumps({**info, "meta": {"command": "demo"}}))
+    with pytest.raises(InputError, match=f"{nameless}: the session does not record the synthetic world"):
+        ibrnav_command("eval-capture", nameless)
+    with pytest.raises(InputError, match="not a capture session"):
+        ibrnav_command("eval-capture", tmp_path)
