@@ -66,7 +66,8 @@ def add_mission_args(p: argparse.ArgumentParser, photos_default: int) -> None:
     p.add_argument("--random-photos", type=int, default=100, help="photos of the random-exploration stage")
     p.add_argument("--circle-step-deg", type=float, default=10.0,
                    help="turn between the photos of a random-exploration circle (deg)")
-    p.add_argument("--max-rounds", type=int, default=6, help="most adaptive rounds (map rebuilds)")
+    p.add_argument("--max-rounds", type=int, default=None, help="most adaptive rounds (map rebuilds; default: no "
+                   "limit, the mission stops when complete, at the photo budget or with no reachable goal)")
     p.add_argument("--goals-per-round", type=int, default=6, help="goals visited between map rebuilds")
     p.add_argument("--min-gain-deg", type=float, default=3.0,
                    help="stop when the best candidate's heuristic score (mean angle, deg) is below this")

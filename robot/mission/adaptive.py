@@ -71,8 +71,11 @@ class AdaptiveConfig:
     """Side step between the photos of a goal (m): 0.6 m is 5 degrees of parallax at 6.9 m."""
     min_gain_rad: float = 0.05
     """Stop when the best candidate's score (mean angle, rad) is below this."""
-    max_rounds: int = 6
-    """Most rounds of goal selection and map rebuilding."""
+    max_rounds: int | None = None
+    """Most rounds of goal selection and map rebuilding; None: no limit, the mission runs
+    until it is complete, its photo budget is spent or no goal is reachable (each round
+    either adds photos, bounded by the budget, or gives up goals that are never drawn
+    again, bounded by the free space; the watchdog bounds each step)."""
     step_limit_s: float | None = 600.0
     """A step of a round (choosing goals, driving to one goal and photographing it,
     rebuilding the map) that takes longer than this (s) is an error (`robot.mission.watchdog`),

@@ -9,6 +9,7 @@ Frames: world SE(2) poses (x, y, theta), metres, radians.
 
 from __future__ import annotations
 
+import itertools
 import logging
 from dataclasses import dataclass, field, replace
 
@@ -129,8 +130,8 @@ def run_mission(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budge
                 random_config: RandomExplorationConfig | None = None, journal=None) -> MissionResult:
     """The whole capture mission: random exploration (`n_random` photos), the initial map,
     then adaptive rounds until no reachable candidate gains more than `config.min_gain_rad`,
-    none is reachable, the model holds `photo_budget` photos, or `config.max_rounds`
-    (`adaptive_rounds`). `start_pose` (3,) is known.
+    none is reachable, the model holds `photo_budget` photos, or after `config.max_rounds`
+    (when set; `adaptive_rounds`). `start_pose` (3,) is known.
     `journal` (`robot.mission.journal.SessionJournal`): commit each step to a capture session
     and resume from what it holds (default: neither)."""
     rng = rng or np.random.default_rng(0)
@@ -154,13 +155,14 @@ def run_mission(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budge
 def adaptive_rounds(mission: AdaptiveMission, result: MissionResult, photo_budget: int, journal=None) -> None:
     """Adaptive rounds from `result.rounds` on until the mission stops on its own; sets
     `result.stopped_because` ("complete": no reachable candidate gains more than
-    `min_gain_rad`; "budget": the photo budget or `max_rounds` is spent; "no reachable goal":
-    no candidate is left that the robot can drive to) and `result.stop_reason` (in words).
+    `min_gain_rad`; "budget": the photo budget or `max_rounds` (when set) is spent; "no
+    reachable goal": no candidate is left that the robot can drive to) and `result.stop_reason` (in words).
     Each step runs under the watchdog (`AdaptiveConfig.step_limit_s`)."""
     config = mission.config
     journal = journal or MissionJournal()
     result.stopped_because, result.stop_reason = "budget", f"{config.max_rounds} rounds"
-    for r in range(result.rounds, config.max_rounds):
+    rounds = itertools.count(result.rounds) if config.max_rounds is None else range(result.rounds, config.max_rounds)
+    for r in rounds:
         if photo_budget - len(result.model_photos) <= 0:
             result.stop_reason = f"photo budget of {photo_budget} reached"
             break
