@@ -98,6 +98,7 @@ def run(args: argparse.Namespace) -> int:
     folder = session_folder(args.session)
     cap, scene = load_model(folder)
     spec, world = world_spec(folder, cap.meta, args.world)
+    seed = int(cap.meta.get("seed", 0)) + 1 if args.seed is None else args.seed
     view = Camera(cap.intrinsics, *cap.image_size, np.eye(4)).scaled(args.scale)
     log.info(f"{folder}: {len(scene)} photos in the final model, {len(scene.mesh.faces)} faces; "
              f"ULR at {args.poses} poses of {spec} ({view.width}x{view.height} px)")
@@ -114,11 +115,11 @@ def run(args: argparse.Namespace) -> int:
         bar.update()
 
     result = eval_capture(world, scene.cameras, [v.image for v in scene.views], scene.mesh, args.poses,
-                          np.random.default_rng(args.seed), view.K, (view.width, view.height), cap.cam_from_robot,
+                          np.random.default_rng(seed), view.K, (view.width, view.height), cap.cam_from_robot,
                           on_view=on_view, ulr_config=UlrConfig(blending=METHODS[args.method]))
     bar.close()
     recording.rerun_teardown(args)
-    report = {"session": str(folder), "world": spec, "method": args.method, "seed": args.seed, "photos": len(scene),
+    report = {"session": str(folder), "world": spec, "method": args.method, "seed": seed, "photos": len(scene),
               "size": [view.width, view.height], **result, "views": views, "seconds": time.perf_counter() - t0}
     if args.json:
         jsonout.write(args.json, report, indent=1)
@@ -145,8 +146,8 @@ def register(subparsers) -> None:
     p.add_argument("--method", choices=tuple(METHODS), default="ulr", help="ulr: Buehler's sparse blending field "
                    "(as explore --json); ulr-pixel: per-pixel weights, the quality reference")
     p.add_argument("--poses", type=int, default=50, help="random free-space poses (camera height, random headings)")
-    p.add_argument("--seed", type=int, default=1, help="seed of the poses (explore --json draws them with its "
-                   "--seed + 1)")
+    p.add_argument("--seed", type=int, default=None, help="seed of the poses (default: the session's seed + 1, the "
+                   "poses explore --json draws at that --seed)")
     p.add_argument("--scale", type=float, default=0.5, help="render and compare at this fraction of the photos' "
                    "resolution (explore --json: 0.5)")
     p.add_argument("--json", default=None, help="write the report here")

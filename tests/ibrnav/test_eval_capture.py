@@ -16,7 +16,7 @@ from robot.protocol import Photo, robot_camera
 from robot.session import CaptureSession
 
 SIZE = (96, 72)
-POSES, SEED = 4, 1  # eval-capture --poses 4 --seed 1
+POSES, SEED = 4, 1  # eval-capture --poses 4 in a session of seed 0: poses seeded by 0 + 1
 
 
 def _make_session(folder, world, poses, meta: dict, model: bool):
@@ -50,10 +50,10 @@ def test_true_photos_at_the_query_poses_render_back(session, tmp_path, ibrnav_co
     from ibrnav.recording import recording_scalars
 
     out, rrd = tmp_path / "eval.json", tmp_path / "eval.rrd"
-    assert ibrnav_command("eval-capture", session, "--poses", POSES, "--seed", SEED, "--scale", 1,
-                          "--method", "ulr-pixel", "--json", out, "--save", rrd) == 0
+    assert ibrnav_command("eval-capture", session, "--poses", POSES, "--scale", 1, "--method", "ulr-pixel",
+                          "--json", out, "--save", rrd) == 0
     r = json.loads(out.read_text())
-    assert r["world"] == "synthetic:office?seed=0" and r["poses"] == POSES == len(r["views"])
+    assert r["world"] == "synthetic:office?seed=0" and r["seed"] == SEED and r["poses"] == POSES == len(r["views"])
     assert r["photos"] == POSES and r["size"] == list(SIZE)
     assert r["covered"]["worst_decile"] > 0.95 and r["psnr_db"]["worst_decile"] > 30 and r["ssim"]["mean"] > 0.9
     assert all(v["psnr_db"] > 30 for v in r["views"])
