@@ -3,8 +3,10 @@ model of a capture session (`model/`: COLMAP poses, the photos, `mesh.ply`) is r
 ULR at random robot poses in the world's free space (camera height and mount of the
 session's robot, random headings) and compared with the synthetic world's true renders
 (`robot.mission.evaluation.eval_capture`): PSNR / SSIM / covered fraction, mean and worst
-decile. The world is the one the session's meta names (`demo` and `drive` record `world`
-and `seed`), or `--world synthetic:NAME?seed=N`."""
+decile. The world is the one the session's meta names (`ibrnav demo` records `world` and
+`seed`), or `--world synthetic:NAME?seed=N`. By default the poses are those `ibrnav explore
+--json` draws for the same seed (`eval_capture` in its report), so a demo's capture and
+explore's random and adaptive ones are judged on the same views."""
 
 from __future__ import annotations
 
