@@ -1,0 +1,53 @@
+"""The adaptive stage's round loop (`adaptive_rounds`) with a stand-in mission whose every
+round reaches one goal and takes two photos: by default (no round limit) it goes on until
+the photo budget is spent, however many rounds that takes; a `max_rounds` still caps it."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from robot.mission.adaptive import AdaptiveConfig
+from robot.mission.mission import MissionResult, adaptive_rounds
+from robot.mission.observer import MissionPhoto
+
+
+class OneGoalPerRound:
+    """A mission in which every round has one reachable goal worth 1 rad, reached, with two
+    photos taken there (into the photo list it shares with the result)."""
+
+    def __init__(self, photos: list, config: AdaptiveConfig):
+        self.photos, self.config, self.map = photos, config, None
+        self.goals_reached, self.given_up_goals, self.given_up, self.give_up_reason = [], [], 0, ""
+        self.body = SimpleNamespace(est=SimpleNamespace(pose=np.zeros(3)))
+        self.rebuilds = 0
+
+    def choose_goals(self):
+        return np.array([[len(self.photos), 0.0, 0.0]]), 1.0, None
+
+    def go_to(self, goal, grid) -> bool:
+        return True
+
+    def capture_at(self, goal, budget: int) -> list:
+        new = [MissionPhoto(None, goal, "goal") for _ in range(min(2, budget))]
+        self.photos.extend(new)
+        return new
+
+    def rebuild(self, new) -> None:
+        self.rebuilds += 1
+
+
+@pytest.mark.parametrize("max_rounds, rounds, stopped", [(None, 20, "budget"), (3, 3, "budget")])
+def test_rounds_go_on_until_the_budget_unless_capped(max_rounds, rounds, stopped):
+    photos = [MissionPhoto(None, np.zeros(3), "random") for _ in range(10)]
+    mission = OneGoalPerRound(photos, AdaptiveConfig(max_rounds=max_rounds, step_limit_s=None))
+    result = MissionResult(photos, None)
+    adaptive_rounds(mission, result, photo_budget=50)  # 40 photos to take, 2 per round
+    assert result.rounds == rounds == mission.rebuilds and result.stopped_because == stopped
+    assert len(result.model_photos) == (50 if max_rounds is None else 10 + 2 * rounds)
+
+
+def test_the_default_has_no_round_limit():
+    assert AdaptiveConfig().max_rounds is None
