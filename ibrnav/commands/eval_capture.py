@@ -79,6 +79,26 @@ def load_model(folder: Path):
     return cap, scene
 
 
+def true_cameras(cap, cameras: list) -> list:
+    """`cameras` (named after their photo files) moved to the simulator's true pose of their
+    photo: the `evaluation` record the mission logs after each photo of a simulated robot."""
+    from pathlib import PurePath
+
+    truth, last = {}, None
+    for r in cap.records:
+        if r["kind"] == "photo":
+            last = PurePath(r["file"]).stem
+        elif r["kind"] == "evaluation" and last is not None and r.get("true_pose") is not None:
+            truth[last] = r["true_pose"]
+    missing = [c.name for c in cameras if c.name not in truth]
+    if missing:
+        raise EvalCaptureError(f"{cap.folder}: no true pose logged for {len(missing)} photos ({missing[0]}, ...); "
+                               "--truth poses needs a simulated robot's session")
+    from robot.protocol import robot_camera
+
+    return [robot_camera(truth[c.name], c.K, (c.width, c.height), cap.cam_from_robot, name=c.name) for c in cameras]
+
+
 def _check_args(args: argparse.Namespace) -> None:
     if args.poses < 1:
         raise EvalCaptureError(f"--poses {args.poses}: must be >= 1")
@@ -116,12 +136,14 @@ def run(args: argparse.Namespace) -> int:
         mission_viz.log_eval_view(k, cam, rendered, truth, metrics)
         bar.update()
 
-    result = eval_capture(world, scene.cameras, [v.image for v in scene.views], scene.mesh, args.poses,
+    cameras = true_cameras(cap, scene.cameras) if "poses" in args.truth else scene.cameras
+    mesh = world.mesh if "mesh" in args.truth else scene.mesh
+    result = eval_capture(world, cameras, [v.image for v in scene.views], mesh, args.poses,
                           np.random.default_rng(seed), view.K, (view.width, view.height), cap.cam_from_robot,
                           on_view=on_view, ulr_config=UlrConfig(blending=METHODS[args.method]))
     bar.close()
     recording.rerun_teardown(args)
-    report = {"session": str(folder), "world": spec, "method": args.method, "seed": seed, "photos": len(scene),
+    report = {"session": str(folder), "world": spec, "method": args.method, "truth": sorted(args.truth), "seed": seed, "photos": len(scene),
               "size": [view.width, view.height], **result, "views": views, "seconds": time.perf_counter() - t0}
     if args.json:
         jsonout.write(args.json, report, indent=1)
@@ -133,7 +155,7 @@ def _summary_line(r: dict) -> str:
     def f(d: dict, fmt: str) -> str:
         return "none" if d["mean"] is None else f"{d['mean']:{fmt}} (worst decile {d['worst_decile']:{fmt}})"
 
-    return (f"{r['session']}: ULR of {r['photos']} photos ({r['method']}) at {r['poses']} poses of {r['world']}: PSNR "
+    return (f"{r['session']}: ULR of {r['photos']} photos ({r['method']}{''.join(f', true {t}' for t in r['truth'])}) at {r['poses']} poses of {r['world']}: PSNR "
             f"{f(r['psnr_db'], '.2f')} dB, SSIM {f(r['ssim'], '.3f')}, covered {f(r['covered'], '.3f')} "
             f"({r['seconds']:.0f} s)")
 
@@ -152,6 +174,9 @@ def register(subparsers) -> None:
                    "poses explore --json draws at that --seed)")
     p.add_argument("--scale", type=float, default=0.5, help="render and compare at this fraction of the photos' "
                    "resolution (explore --json: 0.5)")
+    p.add_argument("--truth", nargs="+", choices=("poses", "mesh"), default=[], help="replace the model's photo "
+                   "poses by the simulator's true ones (logged in the session) and/or its mesh by the world's: the "
+                   "quality the same photos give without the mission's localisation or proxy errors")
     p.add_argument("--json", default=None, help="write the report here")
     recording.add_rerun_args(p)
     p.set_defaults(func=run)
