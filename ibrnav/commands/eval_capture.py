@@ -82,20 +82,18 @@ def load_model(folder: Path):
 def true_cameras(cap, cameras: list) -> list:
     """`cameras` (named after their photo files) moved to the simulator's true pose of their
     photo: the `evaluation` record the mission logs after each photo of a simulated robot."""
-    from pathlib import PurePath
+    from robot.protocol import robot_camera
 
     truth, last = {}, None
     for r in cap.records:
         if r["kind"] == "photo":
-            last = PurePath(r["file"]).stem
+            last = Path(r["file"]).stem
         elif r["kind"] == "evaluation" and last is not None and r.get("true_pose") is not None:
             truth[last] = r["true_pose"]
     missing = [c.name for c in cameras if c.name not in truth]
     if missing:
         raise EvalCaptureError(f"{cap.folder}: no true pose logged for {len(missing)} photos ({missing[0]}, ...); "
                                "--truth poses needs a simulated robot's session")
-    from robot.protocol import robot_camera
-
     return [robot_camera(truth[c.name], c.K, (c.width, c.height), cap.cam_from_robot, name=c.name) for c in cameras]
 
 
@@ -124,11 +122,10 @@ def run(args: argparse.Namespace) -> int:
     view = Camera(cap.intrinsics, *cap.image_size, np.eye(4)).scaled(args.scale)
     log.info(f"{folder}: {len(scene)} photos in the final model, {len(scene.mesh.faces)} faces; "
              f"ULR at {args.poses} poses of {spec} ({view.width}x{view.height} px)")
+    cameras = true_cameras(cap, scene.cameras) if "poses" in args.truth else scene.cameras
+    mesh = world.mesh if "mesh" in args.truth else scene.mesh
     recording.rerun_setup(args, "ibrnav_eval_capture", "ibrnav_eval_capture.rrd")
-    if scene.points is not None:
-        mission_viz.log_robot_map(scene.points, scene.point_colors, scene.mesh)
-    for cam in scene.cameras:
-        mission_viz.log_posed_photo(cam)
+    _log_model(scene, cameras, mesh)
     views, bar = [], counter(args.poses, "views", log)
 
     def on_view(k, pose, cam, rendered, truth, metrics) -> None:
@@ -136,26 +133,37 @@ def run(args: argparse.Namespace) -> int:
         mission_viz.log_eval_view(k, cam, rendered, truth, metrics)
         bar.update()
 
-    cameras = true_cameras(cap, scene.cameras) if "poses" in args.truth else scene.cameras
-    mesh = world.mesh if "mesh" in args.truth else scene.mesh
     result = eval_capture(world, cameras, [v.image for v in scene.views], mesh, args.poses,
                           np.random.default_rng(seed), view.K, (view.width, view.height), cap.cam_from_robot,
                           on_view=on_view, ulr_config=UlrConfig(blending=METHODS[args.method]))
     bar.close()
     recording.rerun_teardown(args)
-    report = {"session": str(folder), "world": spec, "method": args.method, "truth": sorted(args.truth), "seed": seed, "photos": len(scene),
-              "size": [view.width, view.height], **result, "views": views, "seconds": time.perf_counter() - t0}
+    report = {"session": str(folder), "world": spec, "method": args.method, "truth": sorted(args.truth), "seed": seed,
+              "photos": len(scene), "size": [view.width, view.height], **result, "views": views,
+              "seconds": time.perf_counter() - t0}
     if args.json:
         jsonout.write(args.json, report, indent=1)
     print(_summary_line(report))
     return 0
 
 
+def _log_model(scene, cameras: list, mesh) -> None:
+    """What is rendered, in the recording: the model's points, the mesh and the photos'
+    cameras (the model's, or the true ones with --truth)."""
+    from robot.mission import viz as mission_viz
+
+    if scene.points is not None:
+        mission_viz.log_robot_map(scene.points, scene.point_colors, mesh)
+    for cam in cameras:
+        mission_viz.log_posed_photo(cam)
+
+
 def _summary_line(r: dict) -> str:
     def f(d: dict, fmt: str) -> str:
         return "none" if d["mean"] is None else f"{d['mean']:{fmt}} (worst decile {d['worst_decile']:{fmt}})"
 
-    return (f"{r['session']}: ULR of {r['photos']} photos ({r['method']}{''.join(f', true {t}' for t in r['truth'])}) at {r['poses']} poses of {r['world']}: PSNR "
+    how = r["method"] + "".join(f", true {t}" for t in r["truth"])
+    return (f"{r['session']}: ULR of {r['photos']} photos ({how}) at {r['poses']} poses of {r['world']}: PSNR "
             f"{f(r['psnr_db'], '.2f')} dB, SSIM {f(r['ssim'], '.3f')}, covered {f(r['covered'], '.3f')} "
             f"({r['seconds']:.0f} s)")
 

@@ -89,9 +89,9 @@ def eval_capture(world, cameras: list, images: list[np.ndarray], mesh, n_poses: 
     intrinsics at `size` (w, h)) against the world's true renders: PSNR (dB) and SSIM over
     the covered pixels (at most `PSNR_CEILING_DB`), and the covered fraction; mean and worst
     decile (the mean of the worst 10 %) of each. Views ULR covers nowhere count with a
-    covered fraction of 0 and no PSNR/SSIM. `on_view(k, pose (3,), camera, rendered, truth, metrics)` is called after each
-    view (`metrics`: {"psnr_db", "ssim", "covered"}, None where nothing is covered): for
-    progress, logging and per-view reports. `ulr_config` (`ibr.render.ulr.UlrConfig`): the
+    covered fraction of 0 and no PSNR/SSIM. `on_view(k, pose (3,), camera, rendered, truth,
+    metrics)` is called after each view (`metrics`: {"psnr_db", "ssim", "covered"}, None
+    where nothing is covered): for progress, logging and per-view reports. `ulr_config` (`ibr.render.ulr.UlrConfig`): the
     renderer's settings (default: the sparse blending field; blending="pixel" is the quality
     reference)."""
     from ibr.render.eval import psnr, ssim
