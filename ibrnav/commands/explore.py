@@ -46,6 +46,11 @@ def run(args: argparse.Namespace) -> int:
         result = run_mission(robot, start, min(args.random_photos, args.photos), args.photos,
                              mission_config(args), rng, obs, random_config(args))
     obs.progress.close()
+    seconds = time.perf_counter() - t0
+    if args.strategy == "random" and args.eval_poses > 0:  # a model of the random photos, for eval_capture
+        from robot.mission.evaluation import model_of_photos
+
+        result.robot_map = model_of_photos(result.photos, robot, mission_config(args).map)
     if log:
         recording.rerun_teardown(args)
     report = {"scene": args.scene, "strategy": args.strategy, "seed": args.seed,
@@ -56,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
               "pnp_fixes": result.fixes, "pnp_failures": result.failed_fixes,
               "stopped_because": result.stopped_because, "stop_reason": result.stop_reason,
               **_truth_report(world, robot, result), "position_errors": obs.error_summary(),
-              "seconds": time.perf_counter() - t0}
+              "seconds": seconds}
     report["eval_capture"] = _eval_capture(world, robot, result, args.eval_poses, args.seed)
     report["achievable_coverage"] = _achievable(world, robot, args.achievable_poses)
     if args.json:
@@ -82,8 +87,9 @@ def _truth_report(world, robot, result) -> dict:
 
 def _eval_capture(world, robot, result, n_poses: int, seed: int) -> dict | None:
     """ULR of the captured model at `n_poses` random free-space poses against the world's
-    true renders (`robot.mission.evaluation.eval_capture`), at half the photos' size; None
-    without a model (random strategy: no map) or with --eval-poses 0."""
+    true renders (`robot.mission.evaluation.eval_capture`), at half the photos' size (the
+    random strategy's model: SfM of its photos, `model_of_photos`); None without a model
+    (too few photos posed) or with --eval-poses 0."""
     from robot.mission.evaluation import eval_capture
 
     posed = [p for p in result.model_photos if p.camera is not None]
@@ -120,6 +126,7 @@ def register(subparsers) -> None:
     e.add_argument("--achievable-poses", type=int, default=2000, help="poses of the dense capture whose coverage "
                    "is reported as achievable_coverage (0: none)")
     e.add_argument("--eval-poses", type=int, default=50, help="random free-space poses at which ULR renders of the "
-                   "captured model are compared with the world's true renders (0: none; adaptive only)")
+                   "captured model are compared with the world's true renders (0: none; the random strategy's "
+                   "model is an SfM map of its photos)")
     recording.add_rerun_args(e)
     e.set_defaults(func=run)

@@ -7,6 +7,7 @@ Frames: world SE(2) poses (x, y, theta), metres, radians.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 
 import numpy as np
@@ -15,6 +16,8 @@ from localization.motion_models import wrap_angle
 from robot.mission.map_building import RobotMap, umeyama_2d
 from robot.mission.observer import MissionPhoto
 from robot.protocol import se2_matrix
+
+log = logging.getLogger(__name__)
 
 PSNR_CEILING_DB = float(10 * np.log10(255.0 ** 2 * 12))
 """The PSNR of a view rendered exactly (zero error) counts as this (58.9 dB): the PSNR of
@@ -71,6 +74,26 @@ def rooms_visited(world, photos: list[MissionPhoto], truth: dict[int, np.ndarray
     return [r for r in rooms if r in seen], rooms
 
 
+def model_of_photos(photos: list[MissionPhoto], robot, config) -> RobotMap | None:
+    """The map the mission's first stage would build of `photos` (`map_building.initial_map`:
+    SfM, placed in metres by dead reckoning and the compass; `config` a `MapConfig`), the
+    photos it posed given their cameras; None when SfM poses too few of them. For a capture
+    with no map of its own (random exploration alone), so that its new views are judged
+    (`eval_capture`) like the mission's."""
+    from robot.mission.map_building import MapError, initial_map
+
+    try:
+        rmap = initial_map([p.photo.image for p in photos], robot.intrinsics,
+                           np.array([p.estimate for p in photos]), np.array([p.photo.compass_rad for p in photos]),
+                           robot.cam_from_robot, config)
+    except MapError as e:
+        log.info(f"no map of the {len(photos)} photos: {e}")
+        return None
+    for i, cam in rmap.cameras.items():
+        photos[i].camera = cam
+    return rmap
+
+
 def evaluation_poses(world, n_poses: int, rng: np.random.Generator, clearance_m: float = 0.15) -> np.ndarray:
     """(n_poses, 3) random robot poses (x, y, theta) in the world's free space eroded by
     `clearance_m` (the robot's radius, m), random headings: where `eval_capture` looks."""
@@ -91,9 +114,9 @@ def eval_capture(world, cameras: list, images: list[np.ndarray], mesh, n_poses: 
     decile (the mean of the worst 10 %) of each. Views ULR covers nowhere count with a
     covered fraction of 0 and no PSNR/SSIM. `on_view(k, pose (3,), camera, rendered, truth,
     metrics)` is called after each view (`metrics`: {"psnr_db", "ssim", "covered"}, None
-    where nothing is covered): for progress, logging and per-view reports. `ulr_config` (`ibr.render.ulr.UlrConfig`): the
-    renderer's settings (default: the sparse blending field; blending="pixel" is the quality
-    reference)."""
+    where nothing is covered): for progress, logging and per-view reports. `ulr_config`
+    (`ibr.render.ulr.UlrConfig`): the renderer's settings (default: the sparse blending
+    field; blending="pixel" is the quality reference)."""
     from ibr.render.eval import psnr, ssim
     from ibr.render.ulr import UlrRenderer
     from ibr.scene import Scene, View
