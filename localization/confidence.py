@@ -12,9 +12,12 @@ when
   not show, falls short;
 - support: enough of the photo is covered by trusted model (a ramp on the trusted share),
   so a few lucky pixels do not count;
-- no rival: no distinct pose (more than `distinct_px` apart at the finest width) reaches a
-  cost within `rival_margin` of the best: an ambiguous photo (repeated facades, a plain
-  wall) is "not localised" rather than a coin toss.
+- no rival: no distinct pose (more than `distinct_px` apart at the finest width) that would
+  pass the agreement test itself reaches a cost within `rival_margin` of the best: an
+  ambiguous photo (repeated facades, a plain wall) is "not localised" rather than a coin
+  toss. A distinct pose that explains far less than the model does at its own photos is no
+  rival, whatever its cost: the cost sums evidence over the trusted pixels, so a wrong pose
+  that sees more trusted model can tie with the right one that sees a little of it well.
 
 confidence = agreement x support x rival in [0, 1]; localized = confidence >= 0.5. All the
 thresholds are ratios or shares (of the model's own performance, of the image), so they do
@@ -71,10 +74,15 @@ def ramp(x: float, lo: float, hi: float) -> float:
     return float(np.clip((x - lo) / (hi - lo), 0.0, 1.0))
 
 
+def plausible(candidate: Alignment, reference: float, config: ConfidenceConfig = ConfidenceConfig()) -> bool:
+    """Whether a pose would pass the agreement test on its own (a possible rival)."""
+    return ramp(candidate.explained / max(reference, 1e-6), *config.agreement) >= 0.5
+
+
 def judge(best: Alignment, reference: float, rival_gap: float | None,
           config: ConfidenceConfig = ConfidenceConfig()) -> Verdict:
     """The verdict on an aligned pose `best` given the model's `reference` explained share at
-    its own photos and the cost gap to the best distinct rival pose."""
+    its own photos and the cost gap to the best distinct `plausible` rival pose."""
     ratio = best.explained / max(reference, 1e-6)
     agreement = ramp(ratio, *config.agreement)
     support = ramp(best.trusted, *config.support)

@@ -15,9 +15,12 @@ from ibr.progress import progress
 from ibr.proxy.proxy_geometry import build_proxy
 from ibr.proxy.triangulation import sift_features
 from ibr.scene import Scene, View
+from localization.confidence import judge
+from localization.direct_alignment import refine_pose
 from localization.feature_localizer import pose_errors
 from localization.localize import METHODS, LocalizeError, LocConfig, SceneLocalizer
 from localization.pose6_filter import cam_from_world_of, sample_around
+from localization.render_localizer import RenderModel
 
 log = logging.getLogger(__name__)
 
@@ -150,12 +153,31 @@ def query_trial(loc: SceneLocalizer, i: int, trials: int, query: View, spread_m:
     prior = draw_prior(truth, spread_m, spread_deg, rng)
     res = loc.localize(query.image, query.camera, prior, spread_m, spread_deg, rng)
     row = trial_row(i, query.name, res, truth, config)
+    if loc.model is not None:
+        row["from_truth"] = aligned_from_truth(loc.model, query, config)
     log.info(f"[{i + 1}/{trials}] {query.name}: {row['position_m']} m, {row['rotation_deg']} deg, "
              f"{'localised' if row['localized'] else 'not localised: ' + row['reason']}, "
              f"confidence {row['confidence']:.2f}, {res.seconds:.2f} s")
     if on_trial:
         on_trial(i, query, res, row)
     return row
+
+
+def aligned_from_truth(model: RenderModel, query: View, config: LocConfig) -> dict:
+    """Where the rendered likelihood's optimum lies near the truth and whether the model could
+    localise the photo at all: the fine alignment started at the true pose, its errors and
+    its verdict (rivals ignored). A failed query whose alignment from the truth is localised
+    failed the search; one whose alignment from the truth is not, failed for the model."""
+    cfg = model.config
+    cam = query.camera
+    widths = tuple(min(w, cam.width) for w in cfg.refine_widths)
+    a = refine_pose(model.fine.renderer, query.image, cam, cam.cam_from_world, widths, cfg.align, cfg.likelihood,
+                    model.fine.focus, model.light)
+    pos, rot = pose_errors(a.cam_from_world, cam.cam_from_world)
+    v = judge(a, model.reference, None, cfg.confidence)
+    return {"position_m": float(pos), "rotation_deg": float(rot), "explained": a.explained,
+            "trusted": a.trusted, "localized": v.localized,
+            "success": bool(pos < config.success_m and rot < config.success_deg)}
 
 
 def trial_row(i: int, name: str, res, truth: np.ndarray, config: LocConfig) -> dict:
@@ -171,7 +193,9 @@ def trial_row(i: int, name: str, res, truth: np.ndarray, config: LocConfig) -> d
 def summarise(rows: list[dict]) -> dict:
     """Medians of the errors (null when over half the queries returned no pose), success
     rate, flagged rate (queries flagged localised), flag precision (successes among the
-    flagged; null when none is flagged), mean seconds, and success rate per confidence bin."""
+    flagged; null when none is flagged), mean seconds, success rate per confidence bin, and
+    the failures by cause (rendered methods: "search" when the alignment from the truth is
+    localised, so the model could have, "model" when it is not; null without failures)."""
     pos = np.array([np.inf if r["position_m"] is None else r["position_m"] for r in rows])
     rot = np.array([np.inf if r["rotation_deg"] is None else r["rotation_deg"] for r in rows])
     flagged = [r for r in rows if r["localized"]]
@@ -184,7 +208,11 @@ def summarise(rows: list[dict]) -> dict:
         inside = [r for r in rows if lo <= r["confidence"] < hi]
         bins.append({"confidence": [lo, min(hi, 1.0)], "queries": len(inside),
                      "success_rate": float(np.mean([r["success"] for r in inside])) if inside else None})
+    failed = [r for r in rows if not r["success"] and "from_truth" in r]
+    causes = {"search": sum(r["from_truth"]["localized"] for r in failed),
+              "model": sum(not r["from_truth"]["localized"] for r in failed)}
     return {"median_position_m": median(pos), "median_rotation_deg": median(rot),
+            "failures_by_cause": causes if failed else None,
             "success_rate": float(np.mean([r["success"] for r in rows])),
             "flagged_rate": len(flagged) / len(rows),
             "flag_precision": float(np.mean([r["success"] for r in flagged])) if flagged else None,

@@ -29,7 +29,7 @@ from scipy.spatial.transform import Rotation
 
 from ibr.camera import Camera
 from ibr.mesh_renderer import Light, MeshRenderer
-from localization.confidence import ConfidenceConfig, Verdict, judge
+from localization.confidence import ConfidenceConfig, Verdict, judge, plausible
 from localization.direct_alignment import AlignConfig, Alignment, evaluate_pose, observed_at, refine_pose
 from localization.lean_model import lean_mesh
 from localization.model_trust import TrustConfig
@@ -37,6 +37,7 @@ from localization.photo_texture import PhotoTexture
 from localization.pose6_filter import (Pose6Estimate, Pose6Filter, Pose6FilterConfig, PriorBox, cam_from_world_of)
 from localization.render_likelihood import (BatchedLikelihood, LikelihoodConfig, comparison_camera,
                                             likelihood_renderer, truncation)
+from localization.rendered_matches import RenderedMatchConfig, rendered_proposals
 
 
 @dataclass(frozen=True)
@@ -70,6 +71,13 @@ class RenderLocalizerConfig:
     """Modes closer than this (pixels at the filter's finest width) are one mode."""
     reference_views: int = 8
     """Map photos the reference "explained" share is measured on."""
+    matches: RenderedMatchConfig | None = field(default_factory=RenderedMatchConfig)
+    """Pose proposals from features of rendered views (`rendered_matches`), aligned beside
+    the filter's modes; None: the filter's modes only."""
+    proposals: int = 3
+    """Proposals (most inliers first) aligned beside the filter's modes."""
+    proposal_views: int = 2
+    """Best modes of the filter the proposals' first round also renders at."""
 
 
 @dataclass
@@ -189,30 +197,53 @@ class RenderResult:
     aligned: list[Alignment]
 
 
+def proposals(model: RenderModel, image: np.ndarray, camera: Camera, prior: PriorBox | None,
+              modes: list[np.ndarray]) -> list[np.ndarray]:
+    """The best `proposals` poses (4, 4) from rendered views' features (`rendered_matches`)
+    at the prior (with its turned views) and the filter's best `modes`; without a prior
+    (global localisation) at the modes alone; none with matching off."""
+    cfg = model.config
+    if cfg.matches is None or (prior is None and not modes):
+        return []
+    centre, spread_rad, modes = ((prior.cam_from_world, prior.spread_rad, modes) if prior is not None
+                                 else (modes[0], 0.0, modes[1:]))
+    found = rendered_proposals(model.fine.renderer, model.fine.focus, image, camera, centre,
+                               spread_rad, modes, cfg.matches, model.light)
+    return [T for T, _ in found[:cfg.proposals]]
+
+
 def localize_by_rendering(model: RenderModel, image: np.ndarray, camera: Camera, particles: np.ndarray,
                           spread: tuple[float, float], rng: np.random.Generator, prior: PriorBox | None = None,
                           starts: list[np.ndarray] = (),
                           on_step: Callable[[int, np.ndarray, np.ndarray], None] | None = None) -> RenderResult:
     """Localise `image` ((H, W, 3) uint8, intrinsics of `camera`) from prior particles (N, 6)
     drawn within `spread` (metres, radians) of the prior (support `prior`); `starts`: extra
-    cam_from_world poses to align (e.g. a PnP pose)."""
+    cam_from_world poses to align (e.g. a PnP pose). The extra starts and the proposals from
+    rendered views' features are aligned beside the filter's modes, and the best of them (on
+    the coarse model) always reaches the fine alignment: on a coarse model that explains
+    little of the photo its cost may tie with a wrong mode's."""
     cfg = model.config
     pf = Pose6Filter(model.coarse.likelihood, cfg.filter, rng, model.depth_m, spread, prior)
     est = pf.run(image, camera, particles, on_step)
     f_filter = comparison_camera(camera, cfg.filter.widths[-1]).K[0, 0]
     modes = distinct_modes(list(cam_from_world_of(est.particles)), est.costs, cfg.modes,
-                           cfg.mode_separation_px, model.depth_m, f_filter) + list(starts)
+                           cfg.mode_separation_px, model.depth_m, f_filter)
+    extra = list(starts) + proposals(model, image, camera, prior, modes[:cfg.proposal_views])
     coarse = [refine_pose(model.coarse.renderer, image, camera, T, cfg.coarse_widths, cfg.align,
-                          cfg.likelihood, model.coarse.focus, model.light) for T in modes]
+                          cfg.likelihood, model.coarse.focus, model.light) for T in modes + extra]
     widths = tuple(min(w, camera.width) for w in cfg.refine_widths)
     f_fine = comparison_camera(camera, widths[-1]).K[0, 0]
     seeds = distinct_modes([a.cam_from_world for a in coarse], np.array([a.cost for a in coarse]),
                            cfg.fine_modes, cfg.confidence.distinct_px, model.depth_m, f_fine)
+    if extra:
+        best_extra = min(coarse[len(modes):], key=lambda a: a.cost).cam_from_world
+        if all(pose_distance_px(best_extra, T, model.depth_m, f_fine) > cfg.confidence.distinct_px for T in seeds):
+            seeds.append(best_extra)
     fine = sorted((refine_pose(model.fine.renderer, image, camera, T, widths, cfg.align, cfg.likelihood,
                                model.fine.focus, model.light) for T in seeds), key=lambda a: a.cost)
     best = fine[0]
-    rivals = [a.cost - best.cost for a in fine[1:]
-              if pose_distance_px(a.cam_from_world, best.cam_from_world, model.depth_m, f_fine)
+    rivals = [a.cost - best.cost for a in fine[1:] if plausible(a, model.reference, cfg.confidence)
+              and pose_distance_px(a.cam_from_world, best.cam_from_world, model.depth_m, f_fine)
               > cfg.confidence.distinct_px]
     verdict = judge(best, model.reference, min(rivals) if rivals else None, cfg.confidence)
     return RenderResult(best.cam_from_world, verdict, est, fine)
