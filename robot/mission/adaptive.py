@@ -45,7 +45,7 @@ from ibr.proxy.triangulation import TriangulationConfig, sift_features
 from localization.feature_localizer import FeatureLocalizerConfig, FeatureMap
 from localization.motion_models import wrap_angle
 from robot.mission.localizer import FilteredBody, MissionFilterConfig, MissionLocalizer
-from robot.mission.map_building import MapConfig, RobotMap, extend_map, stereo_tracks
+from robot.mission.map_building import MapConfig, RobotMap, Tracks, extend_map, stereo_tracks
 from robot.mission.observer import MissionObserver, MissionPhoto
 from robot.mission.random_stage import Body
 from robot.protocol import Photo, Robot, robot_camera
@@ -138,7 +138,8 @@ class AdaptiveMission:
     map and the localiser. `run_mission` drives it; the methods are its steps."""
 
     def __init__(self, robot: Robot, body: Body, photos: list[MissionPhoto], robot_map: RobotMap,
-                 config: AdaptiveConfig, rng: np.random.Generator, observer: MissionObserver):
+                 config: AdaptiveConfig, rng: np.random.Generator, observer: MissionObserver,
+                 unfixed: set[int] | None = None):
         self.robot, self.body, self.photos, self.map = robot, body, photos, robot_map
         self.config, self.rng, self.obs = config, rng, observer
         w, h = robot.image_size
@@ -151,9 +152,15 @@ class AdaptiveMission:
         """Goals given up: no candidate is drawn near them again."""
         self.bumps: list[np.ndarray] = []
         """Where the bumpers touched something (world xy, m, on the estimate): blocked in every grid."""
+        self.unfixed: set[int] = set(unfixed or ())
+        """Goal photos PnP could not localise, posed at the filter's estimate: in the model
+        (rendering, coverage) but not in the map's tracks, which PnP localises against (an
+        estimate 0.2-0.5 m off would triangulate wrong points, and the next fixes would
+        follow them)."""
+        self._last_view: np.ndarray | None = None  # odometry when the last photo was taken
         self._seen_free = None  # the last scorer's `ViewQuality.seen_free` (its sources' depth maps)
         self.give_up_reason = ""
-        self.tracks = stereo_tracks(self._model_cameras(), self._feats, config.localizer.triangulation)
+        self.tracks = stereo_tracks(self._map_cameras(), self._feats, config.localizer.triangulation)
         self.fmap = self._feature_map()
 
     # --- localisation -------------------------------------------------------------------
@@ -165,6 +172,10 @@ class AdaptiveMission:
 
     def _model_cameras(self) -> dict[int, Camera]:
         return {i: p.camera for i, p in enumerate(self.photos) if p.camera is not None and p.stage != "localise"}
+
+    def _map_cameras(self) -> dict[int, Camera]:
+        """The model's cameras posed by SfM or by a vision fix (what the tracks are made of)."""
+        return {i: c for i, c in self._model_cameras().items() if i not in self.unfixed}
 
     def _feature_map(self) -> FeatureMap:
         """SIFT + PnP map of the tracks so far (built once, then grown by `rebuild`)."""
@@ -191,6 +202,17 @@ class AdaptiveMission:
         self.failed += 1
         return None
 
+    def localise_here(self) -> None:
+        """A photo taken only to localise, unless the robot has not moved or turned since
+        its last photo (by odometry: 1 cm, 0.5 degrees, its own motion's resolution, not a
+        scene's): the same view gives the same PnP answer, or the same failure (at a path's
+        last node or after a failed fix, the office's mission photographed one spot up to 4 times)."""
+        if self._last_view is not None:
+            d = self.robot.odometry() - self._last_view
+            if np.hypot(d[0], d[1]) < 0.01 and abs(wrap_angle(d[2])) < np.radians(0.5):
+                return
+        self.take_photo("localise")
+
     def _spread(self) -> float:
         return self.body.est.spread_m if isinstance(self.body, FilteredBody) else 0.0
 
@@ -199,6 +221,7 @@ class AdaptiveMission:
         plain `Body` takes it as its estimate). A goal photo is posed by its fix, or, when
         PnP failed, at the filter's estimate."""
         photo = self.robot.capture()
+        self._last_view = self.robot.odometry().copy()
         res = self.localise_photo(photo)
         fixed = res is not None
         cam = res.camera if fixed else None
@@ -209,6 +232,7 @@ class AdaptiveMission:
         if not fixed and stage == "goal":
             cam = robot_camera(self.body.est.pose, self.robot.intrinsics, self.robot.image_size,
                                self.robot.cam_from_robot)
+            self.unfixed.add(len(self.photos))
         if cam is not None:
             cam = cam.with_pose(cam.cam_from_world, name=f"photo_{len(self.photos):05d}")
         dr = self.body.est.dead_reckoning.pose.copy() if isinstance(self.body, FilteredBody) else None
@@ -370,13 +394,13 @@ class AdaptiveMission:
                 last = t == len(path) - 1
                 if np.hypot(*(path[t] - self.body.est.pose[:2])) < (c.reach_m if last else c.switch_m):
                     if last:
-                        self.take_photo("localise")  # check the arrival by vision
+                        self.localise_here()  # check the arrival by vision
                         if np.hypot(*(path[t] - self.body.est.pose[:2])) < c.reach_m + 0.05:
                             return True
                         legs += 1
                         continue
                     t += 1
-                    self.take_photo("localise")  # vision fix at every path node
+                    self.localise_here()  # vision fix at every path node
                     continue
                 motion = self._aim_and_drive(path[t])
                 legs += 1
@@ -388,11 +412,11 @@ class AdaptiveMission:
                     break
                 self.log_particles()
                 if isinstance(self.body, FilteredBody) and self.body.est.needs_fix():
-                    self.take_photo("localise")  # the filter's spread grew: look before going on
+                    self.localise_here()  # the filter's spread grew: look before going on
             if not blocked:
                 self.give_up_reason = "" if legs < c.max_legs_per_goal else "legs"
                 return legs < c.max_legs_per_goal
-            self.take_photo("localise")
+            self.localise_here()
         self.give_up_reason = "obstacles" if obstacles > c.max_obstacles else "legs"
         return False
 
@@ -424,7 +448,9 @@ class AdaptiveMission:
         new_ids = {i for i in cams if any(self.photos[i] is q for q in new)}
         if not new_ids:
             return
-        tracks = stereo_tracks(cams, self._feats, self.config.localizer.triangulation, only=new_ids)
+        fixed = new_ids - self.unfixed
+        tracks = (stereo_tracks(self._map_cameras(), self._feats, self.config.localizer.triangulation, only=fixed)
+                  if fixed else Tracks.empty())
         self.map = extend_map(self.map, {i: cams[i] for i in new_ids}, tracks, self.config.map)
         self.tracks = self.tracks + tracks
         self.fmap = self._feature_map()
