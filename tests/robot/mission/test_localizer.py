@@ -81,7 +81,7 @@ def test_grown_prior_keeps_the_track_beyond_the_first_box():
 def test_a_fix_outside_the_prior_particles_moves_the_estimate_as_bayes_says():
     """Prior 0.2 m off with a 5 cm spread (its particles barely reach the fix), a fix with
     100 inliers (sigma 2.5 cm): the posterior of two Gaussians, belief widened by 5 cm,
-    lies 2.2 cm from the fix. Per-part weights mixed 80:20 had left the estimate ~10 cm off."""
+    lies 2.2 cm from the fix. Per-part weights mixed 80:20 had left the estimate 8 cm off."""
     errs = []
     for seed in range(4):
         loc = MissionLocalizer(np.array([0.2, 0.0, 0.0]), np.zeros((1, 2)), MissionFilterConfig(),
