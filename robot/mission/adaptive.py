@@ -15,7 +15,9 @@ From the map of the photos so far (`robot.mission.map_building`), each round:
    target-node switching within `switch_m` on the estimate of an SE(2) particle filter
    (`robot.mission.localizer`): odometry and compass between nodes, *vision* at the nodes
    (SIFT + RANSAC PnP against the map, `localization.feature_localizer`, as a mixture
-   proposal), and an extra photo when the filter's spread grows too large: the plan
+   proposal; after a failed fix it looks the way the nearest map photo looked and tries
+   again; goal photos without a fix stay out of the map's tracks), and an extra photo when
+   the filter's spread grows too large: the plan
    consumes the filter's estimate, never a simulator's truth. On an obstacle it
    marks the contact point blocked on the grid (for this and every later plan), backs off,
    drives a little off the path and re-plans; after `max_obstacles` obstacles it

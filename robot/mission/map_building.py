@@ -4,12 +4,14 @@ Poisson mesh (Foster, Wang & Grupen, sections IV-A end, IV-B "Choosing a goal", 
 `initial_map` poses the random-exploration photos with pycolmap's incremental SfM (the role
 Bundler plays in the paper), made fast for a robot: one shared, known pinhole camera (not
 refined), few SIFT features per small image, exhaustive matching of the (~100) photos.
-COLMAP's frame is arbitrary, so the model is aligned to the robot's floor frame: the camera
-centres' best-fit plane becomes the plane z = camera height (its normal along the cameras'
-up); the metric scale comes from the floor plane found in the SfM points, which lies the
+COLMAP's frame is arbitrary, so the model is aligned to the robot's floor frame: the cameras'
+known up (from their SfM rotations and the mount) becomes +z and their mean height the camera
+height; the metric scale comes from the floor, the bottom of the SfM points, which lies the
 camera's (known) height below the cameras (`floor_alignment`; the 2-D similarity onto the
-dead-reckoning positions gives it only when no floor is found); a 2-D rigid fit onto the
-dead-reckoning positions of the whole random stage gives heading (compass) and position.
+dead-reckoning positions gives it only when no floor is found: the simulated odometry is 14 %
+off per drive, and a random stage has 2-3 drives, so that scale was 10-17 % off); the compass
+gives the heading and the dead reckoning the position, weighted towards the photos taken
+before the first drive (at the known start).
 
 `extend_map` adds photos whose poses were localised (PnP) later: their SIFT features are
 matched with their stereo partners (`stereo_tracks`) and triangulated with the poses *fixed*
@@ -246,12 +248,14 @@ def floor_alignment(centres: np.ndarray, ups: np.ndarray, target_xy: np.ndarray,
                     forwards: np.ndarray | None = None, headings: np.ndarray | None = None,
                     driven_m: np.ndarray | None = None) -> tuple[np.ndarray, str]:
     """(world_from_sfm 4x4 similarity, how the scale was found) taking SfM camera `centres`
-    (N, 3) to the floor frame. Level: the centres' best-fit plane becomes z =
-    `camera_height_m` (normal along the mean camera `ups`). Scale, from what the robot knows:
+    (N, 3) to the floor frame. Level: the mean of the cameras' `ups` (N, 3; each camera's
+    known world up in the SfM frame) becomes +z, the centres' mean z = `camera_height_m`
+    (`_level`). Scale, from what the robot knows:
     - "floor": the floor plane in the SfM `points` (M, 3) (`floor_depth`) lies the camera's
       height below the cameras, so s = camera_height_m / depth (independent of odometry),
       unless the dead reckoning spreads over half the camera height or more and its scale
-      differs by over 25 % (odometry is a few per cent off, so such a floor is wrong);
+      differs by over 25 % (odometry over a random stage's 2-3 drives was 10-17 % off in
+      the simulator, so a floor further off than that is wrong);
     - "odometry": no floor found (or no points): the 2-D similarity (Umeyama) onto
       `target_xy` (N, 2), the dead-reckoning positions over the whole random stage (metres).
     Heading: with the cameras' SfM viewing directions `forwards` (N, 3) and their world

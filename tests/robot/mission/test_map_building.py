@@ -52,7 +52,7 @@ def test_scale_from_the_camera_height_is_within_one_percent():
         assert how_odo == "odometry" and abs(np.cbrt(np.linalg.det(M_odo[:3, :3])) * sfm_scale - 1.08) < 0.01
 
 
-def test_floor_depth_is_the_densest_layer_below_the_cameras():
+def test_floor_depth_is_the_bottom_layer_below_the_cameras():
     rng = np.random.default_rng(1)
     walls = -rng.uniform(-1.4, 1.2, 3000)  # wall points at every height
     table = np.full(150, -0.45) + rng.normal(0, 0.005, 150)  # a table top
