@@ -15,7 +15,9 @@ From the map of the photos so far (`robot.mission.map_building`), each round:
    target-node switching within `switch_m` on the estimate of an SE(2) particle filter
    (`robot.mission.localizer`): odometry and compass between nodes, *vision* at the nodes
    (SIFT + RANSAC PnP against the map, `localization.feature_localizer`, as a mixture
-   proposal), and an extra photo when the filter's spread grows too large: the plan
+   proposal; after a failed fix it looks the way the nearest map photo looked and tries
+   again; goal photos without a fix stay out of the map's tracks), and an extra photo when
+   the filter's spread grows too large: the plan
    consumes the filter's estimate, never a simulator's truth. On an obstacle it
    marks the contact point blocked on the grid (for this and every later plan), backs off,
    drives a little off the path and re-plans; after `max_obstacles` obstacles it
@@ -45,7 +47,7 @@ from ibr.proxy.triangulation import TriangulationConfig, sift_features
 from localization.feature_localizer import FeatureLocalizerConfig, FeatureMap
 from localization.motion_models import wrap_angle
 from robot.mission.localizer import FilteredBody, MissionFilterConfig, MissionLocalizer
-from robot.mission.map_building import MapConfig, RobotMap, extend_map, stereo_tracks
+from robot.mission.map_building import MapConfig, RobotMap, Tracks, extend_map, stereo_tracks
 from robot.mission.observer import MissionObserver, MissionPhoto
 from robot.mission.random_stage import Body
 from robot.protocol import Photo, Robot, robot_camera
@@ -138,7 +140,8 @@ class AdaptiveMission:
     map and the localiser. `run_mission` drives it; the methods are its steps."""
 
     def __init__(self, robot: Robot, body: Body, photos: list[MissionPhoto], robot_map: RobotMap,
-                 config: AdaptiveConfig, rng: np.random.Generator, observer: MissionObserver):
+                 config: AdaptiveConfig, rng: np.random.Generator, observer: MissionObserver,
+                 unfixed: set[int] | None = None):
         self.robot, self.body, self.photos, self.map = robot, body, photos, robot_map
         self.config, self.rng, self.obs = config, rng, observer
         w, h = robot.image_size
@@ -151,9 +154,15 @@ class AdaptiveMission:
         """Goals given up: no candidate is drawn near them again."""
         self.bumps: list[np.ndarray] = []
         """Where the bumpers touched something (world xy, m, on the estimate): blocked in every grid."""
+        self.unfixed: set[int] = set(unfixed or ())
+        """Goal photos PnP could not localise, posed at the filter's estimate: in the model
+        (rendering, coverage) but not in the map's tracks, which PnP localises against (an
+        estimate 0.2-0.5 m off would triangulate wrong points, and the next fixes would
+        follow them)."""
+        self._last_view: np.ndarray | None = None  # odometry when the last photo was taken
         self._seen_free = None  # the last scorer's `ViewQuality.seen_free` (its sources' depth maps)
         self.give_up_reason = ""
-        self.tracks = stereo_tracks(self._model_cameras(), self._feats, config.localizer.triangulation)
+        self.tracks = stereo_tracks(self._map_cameras(), self._feats, config.localizer.triangulation)
         self.fmap = self._feature_map()
 
     # --- localisation -------------------------------------------------------------------
@@ -165,6 +174,10 @@ class AdaptiveMission:
 
     def _model_cameras(self) -> dict[int, Camera]:
         return {i: p.camera for i, p in enumerate(self.photos) if p.camera is not None and p.stage != "localise"}
+
+    def _map_cameras(self) -> dict[int, Camera]:
+        """The model's cameras posed by SfM or by a vision fix (what the tracks are made of)."""
+        return {i: c for i, c in self._model_cameras().items() if i not in self.unfixed}
 
     def _feature_map(self) -> FeatureMap:
         """SIFT + PnP map of the tracks so far (built once, then grown by `rebuild`)."""
@@ -191,6 +204,39 @@ class AdaptiveMission:
         self.failed += 1
         return None
 
+    def localise_here(self) -> None:
+        """A photo taken only to localise, unless the robot has not moved or turned since
+        its last photo (by odometry: 1 cm, 0.5 degrees, its own motion's resolution, not a
+        scene's): the same view gives the same PnP answer, or the same failure (at a path's
+        last node or after a failed fix, the office's mission photographed one spot up to 4 times)."""
+        if self._last_view is not None:
+            d = self.robot.odometry() - self._last_view
+            if np.hypot(d[0], d[1]) < 0.01 and abs(wrap_angle(d[2])) < np.radians(0.5):
+                return
+        failed = self.failed
+        self.take_photo("localise")
+        if self.failed > failed and isinstance(self.body, FilteredBody):
+            heading = self._mapped_view_heading()
+            if heading is not None:
+                self._face(heading)
+                self.take_photo("localise")
+
+    def _mapped_view_heading(self) -> float | None:
+        """After a failed fix: the heading (rad) of the nearest map photo (posed by SfM or a
+        fix) that looked more than half the field of view away from the robot's heading,
+        the way to look for features the map holds (a path's node often faces a bare wall
+        close by: 44 % of the office's localisation photos found no pose). None: no such photo."""
+        est = self.body.est.pose
+        half = np.arctan2(self.template.width / 2, self.template.K[0, 0])
+        best, best_d = None, np.inf
+        for cam in self._map_cameras().values():
+            f = cam.world_from_cam[:3, 2]
+            yaw = float(np.arctan2(f[1], f[0]))
+            d = float(np.hypot(*(cam.center[:2] - est[:2])))
+            if abs(wrap_angle(yaw - est[2])) > half and d < best_d:
+                best, best_d = yaw, d
+        return best
+
     def _spread(self) -> float:
         return self.body.est.spread_m if isinstance(self.body, FilteredBody) else 0.0
 
@@ -199,6 +245,7 @@ class AdaptiveMission:
         plain `Body` takes it as its estimate). A goal photo is posed by its fix, or, when
         PnP failed, at the filter's estimate."""
         photo = self.robot.capture()
+        self._last_view = self.robot.odometry().copy()
         res = self.localise_photo(photo)
         fixed = res is not None
         cam = res.camera if fixed else None
@@ -209,6 +256,7 @@ class AdaptiveMission:
         if not fixed and stage == "goal":
             cam = robot_camera(self.body.est.pose, self.robot.intrinsics, self.robot.image_size,
                                self.robot.cam_from_robot)
+            self.unfixed.add(len(self.photos))
         if cam is not None:
             cam = cam.with_pose(cam.cam_from_world, name=f"photo_{len(self.photos):05d}")
         dr = self.body.est.dead_reckoning.pose.copy() if isinstance(self.body, FilteredBody) else None
@@ -370,13 +418,13 @@ class AdaptiveMission:
                 last = t == len(path) - 1
                 if np.hypot(*(path[t] - self.body.est.pose[:2])) < (c.reach_m if last else c.switch_m):
                     if last:
-                        self.take_photo("localise")  # check the arrival by vision
+                        self.localise_here()  # check the arrival by vision
                         if np.hypot(*(path[t] - self.body.est.pose[:2])) < c.reach_m + 0.05:
                             return True
                         legs += 1
                         continue
                     t += 1
-                    self.take_photo("localise")  # vision fix at every path node
+                    self.localise_here()  # vision fix at every path node
                     continue
                 motion = self._aim_and_drive(path[t])
                 legs += 1
@@ -388,11 +436,11 @@ class AdaptiveMission:
                     break
                 self.log_particles()
                 if isinstance(self.body, FilteredBody) and self.body.est.needs_fix():
-                    self.take_photo("localise")  # the filter's spread grew: look before going on
+                    self.localise_here()  # the filter's spread grew: look before going on
             if not blocked:
                 self.give_up_reason = "" if legs < c.max_legs_per_goal else "legs"
                 return legs < c.max_legs_per_goal
-            self.take_photo("localise")
+            self.localise_here()
         self.give_up_reason = "obstacles" if obstacles > c.max_obstacles else "legs"
         return False
 
@@ -404,7 +452,8 @@ class AdaptiveMission:
     def capture_at(self, goal: np.ndarray, budget: int) -> list[MissionPhoto]:
         """A stereo pair at the goal (at most `budget` photos): one photo facing the goal
         heading, then one after a side step of `stereo_baseline_m` (to the other side when
-        the first is blocked), so what the goal sees is seen from two directions."""
+        the first is blocked) and a look to localise (`localise_here`), so what the goal
+        sees is seen from two directions."""
         c = self.config
         self._face(goal[2])
         out = [self.take_photo("goal")]
@@ -414,6 +463,7 @@ class AdaptiveMission:
             motion = self.body.move(drive=c.stereo_baseline_m * k)
             if motion.blocked:
                 self.body.move(drive=-c.backoff_m)
+            self.localise_here()  # a side step on odometry alone is 8 cm off (14 % per drive)
             self._face(goal[2])
             out.append(self.take_photo("goal"))
         return out
@@ -424,7 +474,9 @@ class AdaptiveMission:
         new_ids = {i for i in cams if any(self.photos[i] is q for q in new)}
         if not new_ids:
             return
-        tracks = stereo_tracks(cams, self._feats, self.config.localizer.triangulation, only=new_ids)
+        fixed = new_ids - self.unfixed
+        tracks = (stereo_tracks(self._map_cameras(), self._feats, self.config.localizer.triangulation, only=fixed)
+                  if fixed else Tracks.empty())
         self.map = extend_map(self.map, {i: cams[i] for i in new_ids}, tracks, self.config.map)
         self.tracks = self.tracks + tracks
         self.fmap = self._feature_map()

@@ -120,6 +120,7 @@ class SessionJournal(MissionJournal):
                  "path_m": mission.body.path_m, "fixes": mission.fixes, "failed": mission.failed,
                  "given_up": mission.given_up, "goals": mission.goals_reached,
                  "given_up_goals": mission.given_up_goals, "bumps": mission.bumps,
+                 "unfixed": sorted(mission.unfixed),
                  "rng": mission.rng.bit_generator.state}
         if hasattr(self.robot, "true_pose"):
             state["sim"] = self.robot.state()

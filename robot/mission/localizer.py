@@ -9,11 +9,11 @@ vision fixes, so path following consumes a filter's estimate, never the simulato
   (`localization.feature_localizer`) as a Mixture-MCL step (Thrun, Fox, Burgard & Dellaert,
   "Robust Monte Carlo localization for mobile robots", 2001; the same idea as
   `localization.hybrid`'s PnP proposal): a fraction `pnp_fraction` of the particles is drawn
-  around the PnP robot pose, the others keep their prior; the prior particles are weighted
-  by the PnP likelihood (Gaussian in x, y, theta with sigmas shrinking as 1/sqrt(inliers),
-  plus an outlier floor), the drawn ones by the predicted belief's density at them (a
-  Gaussian fit of the predicted particles: the dual's importance weight); each part is
-  normalised and mixed in the ratio of its size.
+  around the PnP robot pose, the others keep their prior; every particle is then weighted
+  by the importance weight of that mixture proposal, L(fix | x) prior(x) / q(x) (L Gaussian
+  in x, y, theta with sigmas shrinking as 1/sqrt(inliers), plus an outlier floor; the prior
+  a Gaussian fit of the predicted particles; q the mixture's density), so the posterior is
+  the product of belief and fix wherever its particles came from (`mixture_log_weights`).
 - When PnP fails the filter carries on with odometry alone and its spread grows;
   `needs_fix()` says when the spread is large enough to stop for an extra photo.
 A `CompassDeadReckoning` is kept beside the filter only as the baseline it is compared with.
@@ -48,9 +48,11 @@ class MissionFilterConfig:
     """Compass likelihood's standard deviation per move (rad); 0: compass not used."""
     pnp_fraction: float = 0.2
     """Fraction of the particles drawn around the PnP pose at a fix."""
-    pnp_sigma_xy_m: float = 0.6
-    """PnP position sigma = this / sqrt(inliers), at least `pnp_min_sigma_xy_m` (m)."""
-    pnp_min_sigma_xy_m: float = 0.04
+    pnp_sigma_xy_m: float = 0.25
+    """PnP position sigma = this / sqrt(inliers), at least `pnp_min_sigma_xy_m` (m): 2.5-3.5 cm
+    at the 50-100 inliers of a typical fix, the error measured against the truth (accepted
+    fixes 2.2-3.9 cm at the median, office, 108 random photos; 0.6 had the filter lag them)."""
+    pnp_min_sigma_xy_m: float = 0.02
     """Smallest PnP position sigma (m)."""
     pnp_sigma_theta_rad: float = np.radians(12.0)
     """PnP heading sigma = this / sqrt(inliers), at least 0.5 degrees (rad)."""
@@ -145,24 +147,40 @@ class MissionLocalizer:
         m = max(1, round(self.config.pnp_fraction * n))
         sig = self.pnp_sigmas(n_inliers)
         keep = np.sort(rng.choice(n, n - m, replace=False))
-        prior, prior_w = pf.particles[keep], pf.log_w[keep]
+        prior_w = pf.log_w[keep] - np.logaddexp.reduce(pf.log_w[keep])
         drawn = fix + rng.normal(size=(m, 3)) * sig
         drawn[:, 2] = wrap_angle(drawn[:, 2])
-        # prior part: weight x PnP likelihood
-        a = prior_w + self.pnp_loglik(prior, fix, sig)
-        # drawn part: the predicted belief's density (Gaussian fit, floored so a confident but
-        # wrong prior cannot veto the fix entirely)
-        mean, cov = self.mean, self.cov + np.diag([0.05**2, 0.05**2, np.radians(2) ** 2])
-        d = drawn - mean
-        d[:, 2] = wrap_angle(d[:, 2])
-        b = -0.5 * np.einsum("ni,ij,nj->n", d, np.linalg.inv(cov), d)
-        b = np.logaddexp(b, -12.0)
-        a = a - np.logaddexp.reduce(a) + np.log((n - m) / n)
-        b = b - np.logaddexp.reduce(b) + np.log(m / n)
-        pf.particles, pf.log_w = np.r_[prior, drawn], np.r_[a, b]
-        pf.update(np.zeros(n))  # the map prior (and normalisation)
+        x = np.r_[pf.particles[keep], drawn]
+        pf.particles = x
+        pf.log_w = np.r_[prior_w + np.log(n - m), np.zeros(m)]  # all: samples of the mixture, mean weight 1
+        pf.update(self.mixture_log_weights(x, fix, sig, m / n))
         pf.resample_if_needed()
         self._update_estimate()
+
+    def mixture_log_weights(self, x: np.ndarray, fix: np.ndarray, sig: np.ndarray, share: float) -> np.ndarray:
+        """Importance log-weights (N,) of particles `x` (N, 3) drawn from the mixture
+        proposal q = (1 - share) * prior + share * N(fix, sig) for the posterior
+        L(fix | x) * prior(x): L * prior / q, the prior being a Gaussian fit of the predicted
+        particles (widened by 5 cm and 2 degrees, and floored `pnp_outlier_loglik` below its
+        peak like the fix's likelihood: the belief may be wrong too, so a confident but wrong
+        prior cannot veto a fix entirely, and a second fix that agrees decides). Weighting each part by its own proposal only and mixing them in the
+        ratio of their sizes (as before) kept 80 % of the mass on the prior however badly it
+        fitted the fix: the filter's estimate was 13 cm off where its fixes were 3 cm off
+        (office, 108 + 42 photos)."""
+        mean, cov = self.mean, self.cov + np.diag([0.05**2, 0.05**2, np.radians(2) ** 2])
+        log_prior = _gauss_logpdf(x, mean, cov)
+        log_prior = np.logaddexp(log_prior, _gauss_logpdf(mean[None], mean, cov)[0] + self.config.pnp_outlier_loglik)
+        log_draw = _gauss_logpdf(x, fix, np.diag(sig ** 2))
+        log_q = np.logaddexp(np.log1p(-share) + log_prior, np.log(share) + log_draw)
+        return self.pnp_loglik(x, fix, sig) + log_prior - log_q
+
+
+def _gauss_logpdf(x: np.ndarray, mean: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """Log-density (N,) of a Gaussian in (x, y, theta) at `x` (N, 3), the heading wrapped."""
+    d = x - mean
+    d[:, 2] = wrap_angle(d[:, 2])
+    inv = np.linalg.inv(cov)
+    return -0.5 * (np.einsum("ni,ij,nj->n", d, inv, d) + np.log(np.linalg.det(2 * np.pi * cov)))
 
 
 class FilteredBody(Body):

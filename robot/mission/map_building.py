@@ -4,12 +4,14 @@ Poisson mesh (Foster, Wang & Grupen, sections IV-A end, IV-B "Choosing a goal", 
 `initial_map` poses the random-exploration photos with pycolmap's incremental SfM (the role
 Bundler plays in the paper), made fast for a robot: one shared, known pinhole camera (not
 refined), few SIFT features per small image, exhaustive matching of the (~100) photos.
-COLMAP's frame is arbitrary, so the model is aligned to the robot's floor frame: the camera
-centres' best-fit plane becomes the plane z = camera height (its normal along the cameras'
-up); the metric scale comes from the floor plane found in the SfM points, which lies the
+COLMAP's frame is arbitrary, so the model is aligned to the robot's floor frame: the cameras'
+known up (from their SfM rotations and the mount) becomes +z and their mean height the camera
+height; the metric scale comes from the floor, the bottom of the SfM points, which lies the
 camera's (known) height below the cameras (`floor_alignment`; the 2-D similarity onto the
-dead-reckoning positions gives it only when no floor is found); a 2-D rigid fit onto the
-dead-reckoning positions of the whole random stage gives heading (compass) and position.
+dead-reckoning positions gives it only when no floor is found: the simulated odometry is 14 %
+off per drive, and a random stage has 2-3 drives, so that scale was 10-17 % off); the compass
+gives the heading and the dead reckoning the position, weighted towards the photos taken
+before the first drive (at the known start).
 
 `extend_map` adds photos whose poses were localised (PnP) later: their SIFT features are
 matched with their stereo partners (`stereo_tracks`) and triangulated with the poses *fixed*
@@ -180,65 +182,90 @@ def umeyama_2d(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.
 
 def _level(centres: np.ndarray, ups: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(c0, level): the camera centres' mean and the rotation (rows: new axes) that puts the
-    normal of their best-fit plane (oriented along the mean camera up) on +z."""
+    mean of the cameras' `ups` (N, 3) (each camera's known world up, in the SfM frame) on +z.
+    The cameras' rotations fix the floor's normal to a tenth of a degree; the best-fit plane of
+    their centres does not: a robot's circles of photos are only the mount offset (5 cm) wide,
+    and 1 cm of SfM noise tilted that plane by 2 degrees (office, 48 photos), which smeared
+    the floor's points over 10 cm of depth 3 m away."""
     c0 = centres.mean(0)
-    _, _, Vt = np.linalg.svd(centres - c0)
-    n = Vt[2] if np.linalg.matrix_rank(centres - c0, tol=1e-9) >= 2 else ups.mean(0)
-    n = n * np.sign(n @ ups.mean(0))
+    n = np.asarray(ups, float).mean(0)
     n /= np.linalg.norm(n)
     x = np.cross([0, 1.0, 0], n) if abs(n[1]) < 0.9 else np.cross([1.0, 0, 0], n)
     x /= np.linalg.norm(x)
     return c0, np.stack([x, np.cross(n, x), n])
 
 
-def floor_depth(heights: np.ndarray, bin_share: float = 0.01, min_points: int = 12,
-                bottom_share: float = 0.6, contrast: float = 3.0) -> tuple[float, int] | None:
+def floor_depth(heights: np.ndarray, bin_share: float = 0.025, min_points: int = 12,
+                contrast: float = 2.0) -> tuple[float, int] | None:
     """(depth, support): how far below the cameras the floor lies, in the map's units, and
     how many points support it, from the heights (N,) of the map's points above the cameras'
-    plane (negative below). The floor is the densest horizontal layer at the bottom of the
-    scene: a histogram of the depths in bins of `bin_share` of their 99th percentile (shares:
-    no unit); its fullest bin among the depths beyond `bottom_share` of that percentile
-    (nothing but the floor lies low: a table's top is higher, walls spread their points over
-    every height), refined to the median depth of the points within 1.5 bins of it. None
-    (no floor found) when fewer than `min_points` points lie there, or the layer is not
-    `contrast` times as dense as the other depths around it (a floor SfM saw too little of)."""
+    plane (negative below). The floor is the *bottom* of the map: the floor's own points and
+    the feet of the walls and furniture end there, and below it lie only badly triangulated
+    points (1 % of an office map's lay 0.75 m deep, twice the floor's depth, so no
+    percentile marks the bottom; and an SfM floor can hold as few points per cm of depth as
+    the walls, 2x not 3x, so it is not the "densest layer" either). Depths are binned in
+    `bin_share` of their 90th percentile (a share: no unit; an SfM floor is a layer +-2 to
+    5 % of its depth thick); a layer is 3 bins. The floor is the deepest layer that holds
+    `min_points` points, at least the median layer (not a sparse tail), and `contrast`
+    times the layer 3 bins deeper (the drop below the floor), moved to the fullest layer
+    within 3 bins, then refined to the median depth of the points within 1.5 bins of it.
+    None (no floor found) when no layer qualifies."""
     depth = -np.asarray(heights, float)
     depth = depth[np.isfinite(depth) & (depth > 0)]
     if len(depth) < min_points:
         return None
-    top = float(np.percentile(depth, 99)) * 1.1
-    width = bin_share * top
-    counts, edges = np.histogram(depth, bins=max(int(np.ceil(top / width)), 1), range=(0.0, top))
-    centres = 0.5 * (edges[:-1] + edges[1:])
-    low = np.flatnonzero(centres >= bottom_share * top / 1.1)
-    if len(low) == 0:
+    width = bin_share * float(np.percentile(depth, 90))
+    n_bins = int(np.ceil(2.0 / bin_share))
+    counts, edges = np.histogram(depth, bins=n_bins, range=(0.0, n_bins * width))
+    layer = np.convolve(counts, np.ones(3, int), mode="same")  # points within 1.5 bins of each bin's centre
+    below = np.r_[layer[3:], np.zeros(3, int)]
+    edge = (layer >= min_points) & (layer >= np.median(layer[layer > 0])) & (layer >= contrast * below)
+    if not edge.any():
         return None
-    peak = centres[low[np.argmax(counts[low])]]
-    near = np.abs(depth - peak) <= 1.5 * width  # the layer: 3 bins
-    band = np.abs(depth - peak) <= 15 * width  # its surroundings: 30 bins
-    per_bin_around = (band.sum() - near.sum()) / 27.0
-    if near.sum() < min_points or near.sum() / 3.0 < contrast * per_bin_around:
-        return None
-    return float(np.median(depth[near])), int(near.sum())
+    i = np.flatnonzero(edge)[-1]
+    lo, hi = max(i - 3, 0), i + 4
+    peak = 0.5 * (edges[lo:hi] + edges[lo + 1:hi + 1])[np.argmax(layer[lo:hi])]
+    background = np.median(layer[layer > 0]) / (3 * width)  # the walls' points per unit depth
+    for _ in range(10):  # the layer's median with the walls' even share taken out, re-centred
+        near = np.abs(depth - peak) <= 1.5 * width
+        peak = _median_over_background(np.sort(depth[near]), peak - 1.5 * width, peak + 1.5 * width, background)
+    return peak, int(near.sum())
+
+
+def _median_over_background(d: np.ndarray, a: float, b: float, density: float) -> float:
+    """The depth m in [a, b] that splits the sorted depths `d` in the window in two equal
+    counts once an even background of `density` points per unit depth is taken out of
+    each side (the walls' points reach down to the floor, so they would pull a plain
+    median of the floor's layer upwards)."""
+    m = np.linspace(a, b, 201)
+    left = np.searchsorted(d, m) - density * (m - a)
+    right = (len(d) - np.searchsorted(d, m)) - density * (b - m)
+    return float(m[np.argmin(np.abs(left - right))])
 
 
 def floor_alignment(centres: np.ndarray, ups: np.ndarray, target_xy: np.ndarray,
                     camera_height_m: float, points: np.ndarray | None = None,
-                    forwards: np.ndarray | None = None, headings: np.ndarray | None = None) -> tuple[np.ndarray, str]:
+                    forwards: np.ndarray | None = None, headings: np.ndarray | None = None,
+                    driven_m: np.ndarray | None = None) -> tuple[np.ndarray, str]:
     """(world_from_sfm 4x4 similarity, how the scale was found) taking SfM camera `centres`
-    (N, 3) to the floor frame. Level: the centres' best-fit plane becomes z =
-    `camera_height_m` (normal along the mean camera `ups`). Scale, from what the robot knows:
+    (N, 3) to the floor frame. Level: the mean of the cameras' `ups` (N, 3; each camera's
+    known world up in the SfM frame) becomes +z, the centres' mean z = `camera_height_m`
+    (`_level`). Scale, from what the robot knows:
     - "floor": the floor plane in the SfM `points` (M, 3) (`floor_depth`) lies the camera's
       height below the cameras, so s = camera_height_m / depth (independent of odometry),
       unless the dead reckoning spreads over half the camera height or more and its scale
-      differs by over 25 % (odometry is a few per cent off, so such a floor is wrong);
+      differs by over 25 % (odometry over a random stage's 2-3 drives was 10-17 % off in
+      the simulator, so a floor further off than that is wrong);
     - "odometry": no floor found (or no points): the 2-D similarity (Umeyama) onto
       `target_xy` (N, 2), the dead-reckoning positions over the whole random stage (metres).
     Heading: with the cameras' SfM viewing directions `forwards` (N, 3) and their world
     `headings` (N,) (rad, from the compass), the circular mean of the differences of the
     levelled yaws (good even for one circle of photos, whose centres barely move); else the
     2-D fit onto `target_xy`. Position: the centroid of `target_xy` (compass-aided dead
-    reckoning from the known start)."""
+    reckoning from the known start), each photo weighted by 1 / (`driven_m` + 1 cm) when the
+    distance (m) driven before it is given: dead reckoning drifts as the robot drives (its
+    mean was 0.18 m off over an office's random stage), while the photos taken before the
+    first drive stand at the known start (1 cm: SfM's own noise, so those dominate)."""
     c0, level = _level(centres, ups)
     p = (centres - c0) @ level.T
     floor = None
@@ -256,7 +283,8 @@ def floor_alignment(centres: np.ndarray, ups: np.ndarray, target_xy: np.ndarray,
         f = np.asarray(forwards, float) @ level.T
         a = np.angle(np.mean(np.exp(1j * (np.asarray(headings, float) - np.arctan2(f[:, 1], f[:, 0])))))
         R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
-    t = target_xy.mean(0) - s * R @ p[:, :2].mean(0)
+    w = np.ones(len(p)) if driven_m is None else 1.0 / (np.asarray(driven_m, float) + 0.01)
+    t = (w @ (target_xy - s * p[:, :2] @ R.T)) / w.sum()
     S = np.eye(4)
     S[:2, :2], S[:2, 3], S[2, 2], S[2, 3] = s * R, t, s, camera_height_m
     L = rigid(level, -level @ c0)
@@ -310,15 +338,17 @@ def _place_model(rec, K: np.ndarray, size: tuple[int, int], estimates: np.ndarra
     if len(idx) < 3:
         return None
     centres = np.array([cams[i].center for i in idx])
-    ups = np.array([-cams[i].world_from_cam[:3, 1] for i in idx])
+    up_in_cam = cam_from_robot[:3, :3] @ np.array([0.0, 0.0, 1.0])  # the floor's normal, seen by the camera
+    ups = np.array([cams[i].world_from_cam[:3, :3] @ up_in_cam for i in idx])
     fwd = np.array([cams[i].world_from_cam[:3, 2] for i in idx])
     est = np.asarray(estimates)[idx]
     cam_xy = np.array([_camera_xy(e, cam_from_robot) for e in est])
     heading = np.array([_camera_yaw(np.r_[e[:2], c], cam_from_robot)
                         for e, c in zip(est, np.asarray(compass_rad)[idx])])
     sfm_points = np.array([p.xyz for p in rec.points3D.values()]).reshape(-1, 3)
+    steps = np.r_[0.0, np.cumsum(np.hypot(*np.diff(np.asarray(estimates)[:, :2], axis=0).T))]
     world_from_sfm, how = floor_alignment(centres, ups, cam_xy, float(np.linalg.inv(cam_from_robot)[2, 3]),
-                                          sfm_points, fwd, heading)
+                                          sfm_points, fwd, heading, steps[idx])
     if how != "floor" and not largest:
         return None
     log.info(f"initial map: a model of {len(idx)} photos, metric scale from "
