@@ -76,6 +76,10 @@ class LevelViewLikelihood:
         """The photo (H, W, 3) uint8 to compare with, at `size` (width, height)."""
         self._observed = luminance(image, size)
 
+    def observed_contrast(self) -> float:
+        """The observation's horizon-free variance (luminance^2)."""
+        return float(horizon_free(self._observed).var()) if self._observed is not None else 0.0
+
     def render(self, poses: np.ndarray, size: tuple[int, int]) -> np.ndarray:
         """Luminance (N, h, w) in [0, 1] of the views at SE(2) poses (N, 3), the background
         where there is no geometry; rendered `oversample` times larger, area-averaged."""

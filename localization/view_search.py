@@ -105,13 +105,13 @@ class PanoramaIndex:
     def __init__(self, lik: LevelViewLikelihood, free: shapely.Geometry, spacing_m: float,
                  size: tuple[int, int] = (32, 24), n_views: int = 8):
         cam = lik.camera.scaled(size[0] / lik.camera.width)
-        self.lik, self.size, self.spacing_m = lik, size, spacing_m
+        self.size, self.spacing_m = size, spacing_m
         self.cyl = Cylinder(float(cam.K[0, 0]), float(cam.K[0, 2]), float(cam.K[1, 2]), *size)
         self.offset, self.yaw = _camera_offset(lik.cam_from_robot)
         self.positions = grid_positions(free, spacing_m)
-        self.panoramas = self._render(n_views)
+        self.panoramas = self._render(lik, n_views)
 
-    def _render(self, n_views: int) -> np.ndarray:
+    def _render(self, lik: LevelViewLikelihood, n_views: int) -> np.ndarray:
         """(P, rows, n_cols) float32 panoramas: `n_views` robot poses per position whose
         camera centre is the position, view k looking along yaw -k 2 pi / n_views."""
         cyl, C = self.cyl, self.cyl.n_cols
@@ -123,7 +123,7 @@ class PanoramaIndex:
         for i in range(0, len(self.positions), 512):
             xy = self.positions[i:i + 512]
             poses = self.robot_poses(np.repeat(xy, n_views, axis=0), np.tile(yaws, len(xy)))
-            views = self.lik.render(poses, self.size).astype(np.float32)
+            views = lik.render(poses, self.size).astype(np.float32)
             cols = np.stack([cv2.remap(v, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
                              for v in views])  # (n * n_views, rows, per)
             cols = cols.reshape(len(xy), n_views, cyl.rows, per).transpose(0, 2, 1, 3)
