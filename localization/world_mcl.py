@@ -354,7 +354,10 @@ class WorldMCL:
             self.lik.set_observation(image, size)
             vs = self.lik.ncc(screened, size)
             rival = vs >= v[0] - margin
-            found, dv = screened[rival], vs[rival] - v[0]
+            # before its past is scored, a new rival climbs towards its place's peak (a
+            # probe lands anywhere in a basin, and its offset would count against every photo)
+            found, vf = self._climb(screened[rival], size, iters=2)
+            dv = vf - v[0]
             lr = self._past_lr(found, est, size) + dv / self.T
             rival = lr >= -c.rival_nats
             self.lik.set_observation(image, size)
@@ -363,6 +366,22 @@ class WorldMCL:
             self.rival_lr = np.r_[self.rival_lr, lr[rival]]  # the test starts with the past photos
             far = bool(rival.any())
         return bool(near.any()) or far
+
+    def _climb(self, poses: np.ndarray, size: tuple[int, int], iters: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """`poses` (N, 3) each moved `iters` times to the best of itself and its six
+        neighbours half a tolerance away, and their NCC (N,) (the observation set at `size`)."""
+        c = self.config
+        steps = np.array([[0, 0, 0], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]) \
+            * np.array([c.converged_m, c.converged_m, c.converged_rad]) / 2
+        v = np.zeros(len(poses))
+        for _ in range(iters):
+            cand = (poses[:, None, :] + steps[None]).reshape(-1, 3)
+            vc = self.lik.ncc(cand, size).reshape(len(poses), len(steps))
+            best = np.argmax(vc, axis=1)
+            poses = cand.reshape(len(poses), len(steps), 3)[np.arange(len(best)), best]
+            poses[:, 2] = wrap_angle(poses[:, 2])
+            v = vc[np.arange(len(best)), best]
+        return poses, v
 
     def _past_lr(self, poses: np.ndarray, est: np.ndarray, size: tuple[int, int]) -> np.ndarray:
         """(N,) summed log-likelihood ratio of `poses` (N, 3) to the estimate over the
@@ -392,15 +411,8 @@ class WorldMCL:
         self.rivals, self.rival_lr = self.rivals[away], self.rival_lr[away]
         # each rival first climbs to the best of itself and six neighbours half a
         # tolerance away (it stands for a place, not for one pose that odometry noise moves)
-        steps = np.array([[0, 0, 0], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]) \
-            * np.array([c.converged_m, c.converged_m, c.converged_rad]) / 2
-        cand = (self.rivals[:, None, :] + steps[None]).reshape(-1, 3)
-        vc = self.lik.ncc(np.r_[est[None], cand], size)
-        v0, vc = vc[0], vc[1:].reshape(len(self.rivals), len(steps))
-        best = np.argmax(vc, axis=1)
-        self.rivals = cand.reshape(len(self.rivals), len(steps), 3)[np.arange(len(best)), best]
-        self.rivals[:, 2] = wrap_angle(self.rivals[:, 2])
-        v = np.r_[v0, vc[np.arange(len(best)), best]]
+        self.rivals, vr = self._climb(self.rivals, size)
+        v = np.r_[self.lik.ncc(est[None], size), vr]
         lr = self.rival_lr + (v[1:] - v[0]) / self.T
         keep = np.flatnonzero(lr >= -c.rival_nats)
         keep = keep[np.argsort(-lr[keep])[: c.max_rivals]]
