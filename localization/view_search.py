@@ -110,6 +110,7 @@ class PanoramaIndex:
         self.offset, self.yaw = _camera_offset(lik.cam_from_robot)
         self.positions = grid_positions(free, spacing_m)
         self.panoramas = self._render(lik, n_views)
+        self._last: tuple[np.ndarray, np.ndarray] | None = None
 
     def _render(self, lik: LevelViewLikelihood, n_views: int) -> np.ndarray:
         """(P, rows, n_cols) float32 panoramas: `n_views` robot poses per position whose
@@ -176,14 +177,22 @@ class PanoramaIndex:
         # the window starting at s is centred on column s + (w - 1) / 2
         return np.roll(v, (w - 1) // 2, axis=1)
 
-    def best_poses(self, image: np.ndarray, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-        """The `n` best-scoring (position, heading) cells for the photo as robot poses
-        (n, 3), each drawn uniformly within its cell (a square of the spacing, one column
-        of heading), and their NCC (n,)."""
-        v = self.scores(image)
-        n = min(n, v.size)
-        top = np.argpartition(-v.ravel(), n - 1)[:n]
-        p, c = np.unravel_index(top, v.shape)
+    def best_poses(self, image: np.ndarray, n: int, rng: np.random.Generator,
+                   n_cells: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """n robot poses (n, 3) in the best-scoring (position, heading) cells for the photo
+        and their cells' NCC (n,): the `n` best cells, one pose each, or with `n_cells`, n
+        draws among the `n_cells` best. Each pose is uniform within its cell (a square of
+        the spacing, one column of heading). The last photo's scores are kept, so several
+        draws for one photo cost one search."""
+        if self._last is None or self._last[0] is not image:
+            self._last = (image, self.scores(image).ravel())
+        v = self._last[1]
+        k = min(n if n_cells is None else n_cells, v.size)
+        top = np.argpartition(-v, k - 1)[:k]
+        if n_cells is not None:
+            top = top[rng.integers(len(top), size=n)]
+        n = len(top)
+        p, c = np.unravel_index(top, (len(self.positions), self.cyl.n_cols))
         xy = self.positions[p] + rng.uniform(-0.5, 0.5, (n, 2)) * self.spacing_m
         yaw = -(c + rng.uniform(-0.5, 0.5, n)) * self.cyl.step
-        return self.robot_poses(xy, yaw), v.ravel()[top]
+        return self.robot_poses(xy, yaw), v[top]

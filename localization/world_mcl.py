@@ -23,9 +23,9 @@ short-term likelihood collapses, a global injection that keeps the current cloud
 `n_global` new particles (sensor resetting, Lenser & Veloso 2000, without throwing
 away a hypothesis that may still be right).
 
-Global localisation and the reset's new particles come from the photo, not from a uniform
-prior, when a `PanoramaIndex` is given: the `n_global` (position, heading) cells of a grid
-over the free space that fit the photo best (`localization.view_search`; the measurement's
+Global localisation, the reset's new particles and augmented MCL's injected ones come from
+the photo, not from a uniform prior, when a `PanoramaIndex` is given: the `n_global`
+(position, heading) cells of a grid over the free space that fit the photo best (`localization.view_search`; the measurement's
 own samples, mixture / dual MCL, Thrun et al. 2001). A uniform prior of any affordable size
 misses the likelihood's basin in a large free space (the courtyard: ~60,000 basin cells);
 the photo's best cells hold the truth's. The filter claims convergence only when the
@@ -273,6 +273,9 @@ class WorldMCL:
                  config: WorldMCLConfig = WorldMCLConfig(), search: PanoramaIndex | None = None):
         self.pf, self.lik, self.settings, self.config = pf, lik, settings, config
         self.search = search
+        self._image: np.ndarray | None = None
+        if search is not None:  # augmented MCL's injections come from the photo too
+            pf.injection_source = lambda n: search.best_poses(self._image, n, pf.rng, self.settings.n_global)[0]
         self.seed_next = False
         """Whether the next step replaces the cloud by the photo's best poses."""
         self.converged = False
@@ -293,7 +296,7 @@ class WorldMCL:
         """Predict with the odometry, weight with the photo, judge, resample."""
         c, pf = self.config, self.pf
         pf.predict(odom_before, odom_after)
-        self.odom = odom_after
+        self.odom, self._image = odom_after, image
         if self.seed_next:
             pf._set(self._fresh(image))
             self.seed_next = False
