@@ -117,8 +117,9 @@ def run_tracking(world: SyntheticWorld, seed: int, config: TrackConfig = TrackCo
     s0 = rng.uniform(0, length)
     start = route_pose(route, s0)
     robot = SimRobot(world, SimRobotConfig(), np.random.default_rng(rng.integers(2**32)), ctx, start)
-    mcl = world_filter(world, robot, np.random.default_rng(rng.integers(2**32)), ctx, config.n_particles,
-                       config.search)
+    # the panoramas serve global (re-)initialisations: from a uniform prior or a kidnapping
+    search = config.search and (config.global_init or config.kidnap_step is not None)
+    mcl = world_filter(world, robot, np.random.default_rng(rng.integers(2**32)), ctx, config.n_particles, search)
     if config.global_init:
         mcl.start_global()
     else:
