@@ -111,7 +111,8 @@ class MCLSettings:
 
     basin: Basin
     n_global: int
-    """Particles of a global (re-)initialisation, and KLD-sampling's ceiling."""
+    """Particles of a global (re-)initialisation (with a search: the photo's `n_global`
+    best cells, one particle each), and KLD-sampling's ceiling."""
     kld_bin: tuple[float, float, float]
     roughening: tuple[float, float, float]
 
