@@ -16,6 +16,12 @@ photo by a *horizon-free* normalised cross-correlation:
    Removed, what remains varies with position and heading (facade edges, doors, furniture,
    ground texture).
 
+3. views are rendered at `oversample` times the comparison size and area-averaged down, as
+   the photo is (`luminance`: INTER_AREA from the full image). Rendered straight at 32x24
+   the ground's texture and the facade edges alias, and the view at the true pose matched
+   its own photo at NCC 0.80 (measured in courtyard 3; 0.45 at 16x12); two times
+   oversampled, 0.94 (0.87).
+
 Score: NCC in [-1, 1]; log-likelihood -(1 - NCC) / temperature (dimensionless: the
 temperature is in NCC units, the same in every world). Heigl et al.'s light-field
 particle filter compares the camera image with the view rendered at each particle; this is
@@ -58,6 +64,10 @@ class LevelViewLikelihood:
     light: Light | None
     camera: Camera
     cam_from_robot: np.ndarray
+    oversample: int = 2
+    """Views are rendered at this many times the comparison size and area-averaged down
+    (a ratio of pixel sizes, the same in every world: the photo is area-averaged from its
+    full size, and 2 removes most of the aliasing at a 1.4x cost on llvmpipe)."""
 
     def __post_init__(self):
         self._observed: np.ndarray | None = None
@@ -66,9 +76,21 @@ class LevelViewLikelihood:
         """The photo (H, W, 3) uint8 to compare with, at `size` (width, height)."""
         self._observed = luminance(image, size)
 
+    def observed_contrast(self) -> float:
+        """The observation's horizon-free variance (luminance^2)."""
+        return float(horizon_free(self._observed).var()) if self._observed is not None else 0.0
+
     def render(self, poses: np.ndarray, size: tuple[int, int]) -> np.ndarray:
         """Luminance (N, h, w) in [0, 1] of the views at SE(2) poses (N, 3), the background
-        where there is no geometry."""
+        where there is no geometry; rendered `oversample` times larger, area-averaged."""
+        k = self.oversample
+        lum = self._render(poses, (size[0] * k, size[1] * k))
+        if k == 1:
+            return lum
+        return lum.reshape(len(lum), size[1], k, size[0], k).mean(axis=(2, 4))
+
+    def _render(self, poses: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+        """Luminance (N, h, w) of the views at `size`, rendered as they are."""
         W, H = size
         template = self.camera.scaled(W / self.camera.width)
         m = self.model

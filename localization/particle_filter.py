@@ -133,6 +133,10 @@ class ParticleFilter:
         self.w_slow = self.w_fast = 0.0
         self.n_injected = 0
         self.reinitialised = False  # whether the last resampling step re-initialised globally
+        self.injection_source = None
+        """Where augmented MCL's injected particles come from: a function n -> (n, 3) poses
+        (e.g. poses drawn from the current measurement: mixture MCL); None: uniform over
+        the free space."""
 
     # --- initialisation -----------------------------------------------------------
     def init_uniform(self, n: int | None = None) -> None:
@@ -216,7 +220,8 @@ class ParticleFilter:
         inject = self.rng.random(n_new) < p_inject
         self.n_injected = int(inject.sum())
         if self.n_injected:
-            kept[inject] = sample_free_poses(self.free, self.n_injected, self.rng)
+            kept[inject] = (sample_free_poses(self.free, self.n_injected, self.rng) if self.injection_source is None
+                            else self.injection_source(self.n_injected))
         kept = kept + self.rng.normal(size=kept.shape) * np.asarray(c.roughening)
         kept[:, 2] = wrap_angle(kept[:, 2])
         self._set(kept)

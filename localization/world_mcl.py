@@ -20,8 +20,15 @@ is not collapsed onto a few lucky particles, and two places the likelihood canno
 apart both keep particles until the motion separates them), augmented MCL (w_slow / w_fast
 on the untempered likelihood, nav2_amcl's recovery_alpha_slow / fast) and, when the
 short-term likelihood collapses, a global injection that keeps the current cloud beside
-`n_global` uniform particles (sensor resetting, Lenser & Veloso 2000, without throwing
-away a hypothesis that may still be right). The filter claims convergence only when the
+`n_global` new particles (sensor resetting, Lenser & Veloso 2000, without throwing
+away a hypothesis that may still be right).
+
+Global localisation, the reset's new particles and augmented MCL's injected ones come from
+the photo, not from a uniform prior, when a `PanoramaIndex` is given: the `n_global`
+(position, heading) cells of a grid over the free space that fit the photo best (`localization.view_search`; the measurement's
+own samples, mixture / dual MCL, Thrun et al. 2001). A uniform prior of any affordable size
+misses the likelihood's basin in a large free space (the courtyard: ~60,000 basin cells);
+the photo's best cells hold the truth's. The filter claims convergence only when the
 cloud is unimodal and tight: `converged_mass` of the weight within the success tolerance
 of the estimate.
 """
@@ -36,6 +43,7 @@ from localization.level_view_likelihood import LevelViewLikelihood
 from localization.motion_models import sample_motion_model_odometry, wrap_angle
 from localization.particle_filter import (ParticleFilter, ParticleFilterConfig, effective_sample_size,
                                           sample_free_poses)
+from localization.view_search import PanoramaIndex
 
 
 @dataclass(frozen=True)
@@ -103,7 +111,8 @@ class MCLSettings:
 
     basin: Basin
     n_global: int
-    """Particles of a global (re-)initialisation, and KLD-sampling's ceiling."""
+    """Particles of a global (re-)initialisation (with a search: the photo's `n_global`
+    best cells, one particle each), and KLD-sampling's ceiling."""
     kld_bin: tuple[float, float, float]
     roughening: tuple[float, float, float]
 
@@ -133,7 +142,9 @@ class WorldMCLConfig:
     fine_size: tuple[int, int] = (64, 48)
     """Comparison size (px) once it has."""
     temperature: float = 0.05
-    """Least temperature of the NCC log-likelihood (NCC units, the same in every world)."""
+    """Temperature of the NCC log-likelihood for the augmented-MCL averages (comparable
+    from step to step), and the ceiling of the step's calibrated least temperature
+    (`calibrated_temperature`) (NCC units, the same in every world)."""
     ess_min: float = 0.1
     """Temper so that the effective sample size stays at least this fraction of N."""
     reinit_ratio: float = 0.1
@@ -161,6 +172,12 @@ class WorldMCLConfig:
     of at least e^-3 = 5 %)."""
     max_rivals: int = 64
     """Most rival poses remembered from step to step (the best-fitting)."""
+    history_steps: int = 5
+    """A newly found rival is scored on up to this many earlier photos as well (moved back
+    along the odometry), so that its test starts with the evidence of the drive so far: a
+    rival must fit the last few photos, not this one only (measured in the courtyard: each
+    step's probes found poses that fit that one photo as well as the truth, and a claim was
+    never made). A count of photos, the same in every world."""
 
 
 @dataclass
@@ -195,6 +212,33 @@ def ess_temperature(log_w: np.ndarray, loglik: np.ndarray, ess_min: float) -> fl
     return float(np.exp(hi))
 
 
+def calibrated_temperature(ncc: np.ndarray, contrast: float, ceiling: float) -> float:
+    """The least temperature of the NCC log-likelihood -(1 - NCC) / T at this step (NCC
+    units): how far the best view of the cloud falls short of the photo, 1 - max NCC. That
+    shortfall is the model's mismatch with the photo at (or near) the true pose (lighting,
+    texture filtering, resolution); poses that fall short of the best by that much again
+    are e times less likely. A fixed 0.05 is right where the view at the truth scores ~0.95
+    (the office) but flattens the likelihood 5 to 10 times where it scores 0.99 (the
+    courtyard, two times oversampled), and the weight then gathered on the truth over ~25
+    photos instead of a few. Bounded below by what 8-bit quantisation alone costs the NCC
+    (the quantisation noise's variance, 1 / (12 255^2), over the photo's `contrast`, its
+    horizon-free variance), above by `ceiling` (the configured temperature: a lost cloud,
+    whose best view fits badly, is not made flatter than before)."""
+    floor = 1.0 / (12 * 255.0**2) / max(contrast, 1e-12)
+    return float(np.clip(1.0 - np.max(ncc), floor, ceiling)) if len(ncc) else ceiling
+
+
+def se2_backward(poses: np.ndarray, odom_then: np.ndarray, odom_now: np.ndarray) -> np.ndarray:
+    """(N, 3) poses at the time of `odom_then` of robots now at `poses` (N, 3), moved back
+    by the odometry's relative motion from `odom_then` to `odom_now` (without noise)."""
+    c, s = np.cos(odom_then[2]), np.sin(odom_then[2])
+    dx, dy = odom_now[:2] - odom_then[:2]
+    d = np.array([c * dx + s * dy, -s * dx + c * dy])  # in the robot's frame then
+    th = wrap_angle(poses[:, 2] - (odom_now[2] - odom_then[2]))
+    ct, st = np.cos(th), np.sin(th)
+    return np.c_[poses[:, 0] - (ct * d[0] - st * d[1]), poses[:, 1] - (st * d[0] + ct * d[1]), th]
+
+
 def local_ring(pose: np.ndarray, step_m: float, step_rad: float) -> np.ndarray:
     """(20, 3) poses around `pose`: 8 directions at one and two `step_m` (same heading), and
     the heading turned by one and two `step_rad` either way."""
@@ -223,11 +267,18 @@ def mode_estimate(particles: np.ndarray, w: np.ndarray, bin_size) -> np.ndarray:
 
 class WorldMCL:
     """pf: the SE(2) particle filter (made from `settings.filter_config()`); lik: the
-    level-view likelihood; settings: the world's settings."""
+    level-view likelihood; settings: the world's settings; search: the map's panoramas,
+    where global (re-)initialisations draw their particles from (None: uniform)."""
 
     def __init__(self, pf: ParticleFilter, lik: LevelViewLikelihood, settings: MCLSettings,
-                 config: WorldMCLConfig = WorldMCLConfig()):
+                 config: WorldMCLConfig = WorldMCLConfig(), search: PanoramaIndex | None = None):
         self.pf, self.lik, self.settings, self.config = pf, lik, settings, config
+        self.search = search
+        self._image: np.ndarray | None = None
+        if search is not None:  # augmented MCL's injections come from the photo too
+            pf.injection_source = lambda n: search.best_poses(self._image, n, pf.rng, self.settings.n_global)[0]
+        self.seed_next = False
+        """Whether the next step replaces the cloud by the photo's best poses."""
         self.converged = False
         self.streak = 0
         """Consecutive steps with one tight mode and no rival."""
@@ -235,18 +286,32 @@ class WorldMCL:
         """Poses away from the estimate that the likelihood cannot rule out."""
         self.rival_lr = np.zeros(0)
         """Each rival's summed log-likelihood ratio to the estimate since it was found."""
+        self.T = config.temperature
+        """This step's least temperature (`calibrated_temperature`)."""
+        self.odom = np.zeros(3)
+        """The odometry of the current step."""
+        self.history: list[tuple[np.ndarray, np.ndarray]] = []
+        """(odometry, photo) of the last `history_steps` steps."""
 
     def step(self, odom_before: np.ndarray, odom_after: np.ndarray, image: np.ndarray) -> WorldStep:
         """Predict with the odometry, weight with the photo, judge, resample."""
         c, pf = self.config, self.pf
         pf.predict(odom_before, odom_after)
+        self.odom, self._image = odom_after, image
+        if self.seed_next:
+            pf._set(self._fresh(image))
+            self.seed_next = False
         if len(self.rivals):
             self.rivals = sample_motion_model_odometry(self.rivals, odom_before, odom_after, pf.config.alphas, pf.rng)
         size = c.fine_size if self.converged else c.coarse_size
         self.lik.set_observation(image, size)
-        fit = -(1.0 - self.lik.ncc(pf.particles, size)) / c.temperature
+        v = self.lik.ncc(pf.particles, size)
+        self.T = calibrated_temperature(v, self.lik.observed_contrast(), c.temperature)
+        fit = -(1.0 - v) / self.T
         t = ess_temperature(pf.log_w, fit, c.ess_min)
-        pf.update(fit / t, fit_loglik=fit)
+        # the augmented-MCL averages need a likelihood comparable from step to step: at the
+        # configured temperature, not the step's calibrated one
+        pf.update(fit / t, fit_loglik=-(1.0 - v) / c.temperature)
         w = pf.weights
         est = mode_estimate(pf.particles, w, self.settings.kld_bin)
         mass = self.mass_near(est)
@@ -257,18 +322,20 @@ class WorldMCL:
         n = len(pf.particles)
         reset = pf.w_slow > 0 and pf.w_fast < c.reinit_ratio * pf.w_slow
         if reset:
-            self._global_injection()
+            self._global_injection(image)
             injected = self.settings.n_global
         else:
             injected = pf.n_injected if pf.resample_if_needed() else 0
-        return WorldStep(est, self.converged, mass, n, t, size, injected, reset)
+        self.history = (self.history + [(odom_after, image)])[-c.history_steps:]
+        return WorldStep(est, self.converged, mass, n, self.T * t, size, injected, reset)
 
     def _rivals(self, image: np.ndarray, est: np.ndarray, t: float, size: tuple[int, int]) -> bool:
         """Whether other poses fit the photo as well as the estimate does:
         - near: a ring at one and two tolerances around it (at this step's comparison
           `size`) fits better than the estimate (it is not the likelihood's local maximum at
           the tolerance's scale: a tight cloud that slid off the peak);
-        - far: some of `probe_fraction` x n_global uniform poses beyond two tolerances have
+        - far: some of `probe_fraction` x n_global poses (uniform, or with a search the
+          photo's best cells) beyond two tolerances have
           a likelihood within `rival_nats` of the estimate's (another place the filter's
           own likelihood cannot rule out). Screened at `probe_size`, the few that pass
           checked at `size`.
@@ -279,8 +346,13 @@ class WorldMCL:
         v = self.lik.ncc(np.r_[est[None], ring], size)  # the observation is set at `size`
         near = v[1:] > v[0]
         self._join(ring[near], v[1:][near] - v[0], t)
-        margin = c.rival_nats * c.temperature
-        probes = sample_free_poses(pf.free, max(1, int(c.probe_fraction * self.settings.n_global)), pf.rng)
+        margin = c.rival_nats * self.T
+        n_probes = max(1, int(c.probe_fraction * self.settings.n_global))
+        # with a search, the probes are the photo's best cells: uniform probes miss the
+        # basin of another place in a large site as a uniform prior does (measured in
+        # courtyard 2: a claim held 21.8 m / 157 deg off for 2 steps, no probe near the truth)
+        probes = sample_free_poses(pf.free, n_probes, pf.rng) if self.search is None else \
+            self.search.best_poses(image, n_probes, pf.rng)[0]
         away = (np.hypot(*(probes[:, :2] - est[:2]).T) > 2 * c.converged_m) | \
                (np.abs(wrap_angle(probes[:, 2] - est[2])) > 2 * c.converged_rad)
         probes = probes[away]
@@ -291,12 +363,48 @@ class WorldMCL:
         if len(screened):
             self.lik.set_observation(image, size)
             vs = self.lik.ncc(screened, size)
-            rival = vs >= v[0] - margin
-            self._join(screened[rival], vs[rival] - v[0], t)
-            self.rivals = np.r_[self.rivals, screened[rival]]
-            self.rival_lr = np.r_[self.rival_lr, np.zeros(int(rival.sum()))]  # the test starts
+            rival = np.flatnonzero(vs >= v[0] - margin)
+            rival = rival[np.argsort(-vs[rival])[: c.max_rivals]]  # the best-fitting
+            # before its past is scored, a new rival climbs towards its place's peak (a
+            # probe lands anywhere in a basin, and its offset would count against every photo)
+            found, vf = self._climb(screened[rival], size, iters=2)
+            dv = vf - v[0]
+            lr = self._past_lr(found, est, size) + dv / self.T
+            rival = lr >= -c.rival_nats
+            self.lik.set_observation(image, size)
+            self._join(found[rival], dv[rival], t)
+            self.rivals = np.r_[self.rivals, found[rival]]
+            self.rival_lr = np.r_[self.rival_lr, lr[rival]]  # the test starts with the past photos
             far = bool(rival.any())
         return bool(near.any()) or far
+
+    def _climb(self, poses: np.ndarray, size: tuple[int, int], iters: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """`poses` (N, 3) each moved `iters` times to the best of itself and its six
+        neighbours half a tolerance away, and their NCC (N,) (the observation set at `size`)."""
+        c = self.config
+        steps = np.array([[0, 0, 0], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]) \
+            * np.array([c.converged_m, c.converged_m, c.converged_rad]) / 2
+        v = np.zeros(len(poses))
+        for _ in range(iters):
+            cand = (poses[:, None, :] + steps[None]).reshape(-1, 3)
+            vc = self.lik.ncc(cand, size).reshape(len(poses), len(steps))
+            best = np.argmax(vc, axis=1)
+            poses = cand.reshape(len(poses), len(steps), 3)[np.arange(len(best)), best]
+            poses[:, 2] = wrap_angle(poses[:, 2])
+            v = vc[np.arange(len(best)), best]
+        return poses, v
+
+    def _past_lr(self, poses: np.ndarray, est: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+        """(N,) summed log-likelihood ratio of `poses` (N, 3) to the estimate over the
+        photos of `history`, both moved back along the odometry to each photo's step (at
+        the least temperature)."""
+        lr = np.zeros(len(poses))
+        for odom, photo in self.history:
+            back = se2_backward(np.r_[est[None], poses], odom, self.odom)
+            self.lik.set_observation(photo, size)
+            v = self.lik.ncc(back, size)
+            lr += (v[1:] - v[0]) / self.T
+        return lr
 
     def _remembered_rivals(self, est: np.ndarray, t: float, size: tuple[int, int]) -> bool:
         """Re-score the rivals found at earlier steps (moved by the odometry like the
@@ -314,16 +422,9 @@ class WorldMCL:
         self.rivals, self.rival_lr = self.rivals[away], self.rival_lr[away]
         # each rival first climbs to the best of itself and six neighbours half a
         # tolerance away (it stands for a place, not for one pose that odometry noise moves)
-        steps = np.array([[0, 0, 0], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]) \
-            * np.array([c.converged_m, c.converged_m, c.converged_rad]) / 2
-        cand = (self.rivals[:, None, :] + steps[None]).reshape(-1, 3)
-        vc = self.lik.ncc(np.r_[est[None], cand], size)
-        v0, vc = vc[0], vc[1:].reshape(len(self.rivals), len(steps))
-        best = np.argmax(vc, axis=1)
-        self.rivals = cand.reshape(len(self.rivals), len(steps), 3)[np.arange(len(best)), best]
-        self.rivals[:, 2] = wrap_angle(self.rivals[:, 2])
-        v = np.r_[v0, vc[np.arange(len(best)), best]]
-        lr = self.rival_lr + (v[1:] - v[0]) / c.temperature
+        self.rivals, vr = self._climb(self.rivals, size)
+        v = np.r_[self.lik.ncc(est[None], size), vr]
+        lr = self.rival_lr + (v[1:] - v[0]) / self.T
         keep = np.flatnonzero(lr >= -c.rival_nats)
         keep = keep[np.argsort(-lr[keep])[: c.max_rivals]]
         self.rivals, self.rival_lr = self.rivals[keep], lr[keep]
@@ -336,7 +437,7 @@ class WorldMCL:
         if not len(poses):
             return
         pf = self.pf
-        log_w = np.r_[pf.log_w, dv / (self.config.temperature * t) + pf.log_w.max()]
+        log_w = np.r_[pf.log_w, dv / (self.T * t) + pf.log_w.max()]
         pf.particles = np.r_[pf.particles, poses]
         pf.log_w = log_w - np.logaddexp.reduce(log_w)
 
@@ -347,14 +448,28 @@ class WorldMCL:
                (np.abs(wrap_angle(p[:, 2] - pose[2])) < c.converged_rad)
         return float(self.pf.weights[near].sum())
 
-    def _global_injection(self) -> None:
+    def start_global(self) -> None:
+        """Global localisation: uniform particles now, replaced at the next step by the
+        photo's best poses when there is a search."""
+        self.pf.init_uniform()
+        self.seed_next = self.search is not None
+
+    def _fresh(self, image: np.ndarray) -> np.ndarray:
+        """`n_global` new particles: the photo's best poses (with a search), else uniform."""
+        n = self.settings.n_global
+        if self.search is None:
+            return sample_free_poses(self.pf.free, n, self.pf.rng)
+        return self.search.best_poses(image, n, self.pf.rng)[0]
+
+    def _global_injection(self, image: np.ndarray) -> None:
         """Keep the current cloud (resampled to at most half the global count) and add
-        `n_global` uniform particles, all equally weighted; restart the averages."""
+        `n_global` new particles (`_fresh`), all equally weighted; restart the averages."""
         pf = self.pf
         keep = min(len(pf.particles), self.settings.n_global // 2)
         idx = pf.rng.choice(len(pf.particles), keep, p=pf.weights)
-        fresh = sample_free_poses(pf.free, self.settings.n_global, pf.rng)
+        fresh = self._fresh(image)
         pf._set(np.r_[pf.particles[idx], fresh])
         pf.w_slow = pf.w_fast = 0.0
         self.converged, self.streak = False, 0
         self.rivals, self.rival_lr = np.zeros((0, 3)), np.zeros(0)
+        self.history = []

@@ -29,6 +29,7 @@ from localization.level_view_likelihood import LevelViewLikelihood
 from localization.motion_models import wrap_angle
 from localization.particle_filter import ParticleFilter
 from localization.render_likelihood import likelihood_renderer
+from localization.view_search import PanoramaIndex
 from localization.world_mcl import MCLSettings, WorldMCL, WorldMCLConfig, WorldStep, measure_basin
 from robot.sim_robot import SimRobot, SimRobotConfig
 from robot.waypoint_follower import follow_waypoints
@@ -49,6 +50,9 @@ class TrackConfig:
     diameter, a size of the robot, not of the world."""
     hold_steps: int = 3
     """Localised when within the tolerance for this many consecutive steps."""
+    search: bool = True
+    """Global (re-)initialisations from the photo's best poses (`localization.view_search`),
+    else uniform."""
 
 
 def pose_error(estimate: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
@@ -77,13 +81,16 @@ def route_pose(route: np.ndarray, s: float) -> np.ndarray:
 
 
 _BASINS: dict = {}
+_SEARCHES: dict = {}
 
 
 def world_filter(world: SyntheticWorld, robot: SimRobot, rng: np.random.Generator, ctx=None,
-                 n_particles: int | None = None) -> WorldMCL:
+                 n_particles: int | None = None, search: bool = True) -> WorldMCL:
     """The filter for `world`: the level-view likelihood on the world's mesh (lit like the
     photos, its background where it has no geometry), settings from the measured basin and
-    the free area, success tolerance from the robot's size."""
+    the free area, success tolerance from the robot's size; with `search`, global
+    (re-)initialisations from the photo's best poses over the map's panoramas (rendered
+    once per world, at the basin's spacing)."""
     lik = LevelViewLikelihood(likelihood_renderer(world.mesh, ctx, world.background), world.light,
                               Camera(robot.intrinsics, *robot.image_size), robot.cam_from_robot)
     key = (world.name, world.seed, robot.free.area)
@@ -94,7 +101,9 @@ def world_filter(world: SyntheticWorld, robot: SimRobot, rng: np.random.Generato
         settings = replace(settings, n_global=n_particles)
     pf = ParticleFilter(robot.free, settings.filter_config(), rng)
     config = WorldMCLConfig(converged_m=2 * robot.config.radius_m)
-    return WorldMCL(pf, lik, settings, config)
+    if search and key not in _SEARCHES:  # panoramas at a grid as fine as the basin
+        _SEARCHES[key] = PanoramaIndex(lik, robot.free, settings.basin.m, config.coarse_size)
+    return WorldMCL(pf, lik, settings, config, _SEARCHES[key] if search else None)
 
 
 def run_tracking(world: SyntheticWorld, seed: int, config: TrackConfig = TrackConfig(),
@@ -108,9 +117,11 @@ def run_tracking(world: SyntheticWorld, seed: int, config: TrackConfig = TrackCo
     s0 = rng.uniform(0, length)
     start = route_pose(route, s0)
     robot = SimRobot(world, SimRobotConfig(), np.random.default_rng(rng.integers(2**32)), ctx, start)
-    mcl = world_filter(world, robot, np.random.default_rng(rng.integers(2**32)), ctx, config.n_particles)
+    # the panoramas serve global (re-)initialisations: from a uniform prior or a kidnapping
+    search = config.search and (config.global_init or config.kidnap_step is not None)
+    mcl = world_filter(world, robot, np.random.default_rng(rng.integers(2**32)), ctx, config.n_particles, search)
     if config.global_init:
-        mcl.pf.init_uniform()
+        mcl.start_global()
     else:
         mcl.pf.init_gaussian(start, [0.05, 0.05, np.radians(2)])
     legs = _drive_from(robot, route, s0, length, seed)

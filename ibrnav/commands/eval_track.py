@@ -47,7 +47,8 @@ def run(args: argparse.Namespace) -> int:
     spec = parse_scene_spec(args.scene, synthetic_only=True, allowed=("seed",))
     world = make_world(spec.world, spec.seed(args.world_seed))
     config = TrackConfig(steps=args.steps, kidnap_step=None if args.kidnap_step < 0 else args.kidnap_step,
-                         global_init=not args.known_start, n_particles=args.particles)
+                         global_init=not args.known_start, n_particles=args.particles,
+                         search=not args.uniform_prior)
     recording.rerun_setup(args, "ibrnav_eval_track", "eval_track.rrd")
     ibr_viz.log_mesh("world/map/mesh", world.mesh)
     trials = []
@@ -99,6 +100,9 @@ def register(subparsers) -> None:
                    help="global particle count (default: from the world's free area and the "
                         "measured likelihood basin)")
     p.add_argument("--known-start", action="store_true", help="start from the true pose, not a uniform prior")
+    p.add_argument("--uniform-prior", action="store_true",
+                   help="global (re-)initialisations from uniform particles, not from the photo's "
+                        "best poses over the map's panoramas")
     p.add_argument("--seed", type=int, default=0, help="seed of trial 0 (trial i uses seed + i)")
     p.add_argument("--world-seed", type=int, default=0, help="seed of the synthetic world")
     p.add_argument("--json", help="write per-trial results and the summary here")

@@ -154,3 +154,17 @@ def test_random_walk_prediction_moves_particles():
     pf.init_gaussian([3.0, 1.0, 0.0], [0.0, 0.0, 0.0])
     pf.predict_random_walk(np.array([0.05, 0.05, 0.02]))
     np.testing.assert_allclose(pf.particles.std(axis=0), [0.05, 0.05, 0.02], rtol=0.06)
+
+
+def test_injected_particles_come_from_the_injection_source():
+    """Mixture MCL: with a source (e.g. the poses the photo fits best), augmented MCL's
+    injected particles are drawn from it, not uniformly."""
+    pf = ParticleFilter(shapely.box(0, 0, 10, 10), ParticleFilterConfig(n_particles=500, n_min=500,
+                                                                       roughening=(0, 0, 0)),
+                        np.random.default_rng(0))
+    pf.init_gaussian([2.0, 2.0, 0.0], [0.05, 0.05, 0.01])
+    pf.injection_source = lambda n: np.tile([8.0, 8.0, 1.0], (n, 1))
+    pf.w_slow, pf.w_fast = 1.0, 0.5  # injection due (p = 0.5), not collapsed
+    assert pf.resample_if_needed() and pf.n_injected > 100
+    at_source = (np.abs(pf.particles - [8.0, 8.0, 1.0]) < 1e-9).all(axis=1)
+    assert at_source.sum() == pf.n_injected

@@ -9,7 +9,9 @@ from ibr.synthetic import make_world
 from localization.level_view_likelihood import LevelViewLikelihood, ncc_rows
 from localization.particle_filter import effective_sample_size, sample_free_poses
 from localization.render_likelihood import likelihood_renderer
-from localization.world_mcl import Basin, MCLSettings, ess_temperature, measure_basin, mode_estimate
+from localization.motion_models import apply_odometry, odometry_decomposition
+from localization.world_mcl import (Basin, MCLSettings, calibrated_temperature, ess_temperature, measure_basin,
+                                    mode_estimate, se2_backward)
 from robot.protocol import robot_camera
 from robot.sim_robot import SimRobot, SimRobotConfig
 
@@ -33,14 +35,15 @@ def _courtyard(gl_ctx, seed=3):
 
 
 def test_views_show_the_sky_where_the_model_is_empty_and_the_truth_wins_outdoors(gl_ctx):
-    """The batched read-back equals the renderer's own per-camera render (luminance, the
-    background where nothing is drawn); in the courtyard, where half the view is sky, the
+    """The batched read-back equals the renderer's own per-camera render at twice the size,
+    area-averaged (luminance, the background where nothing is drawn); in the courtyard, where half the view is sky, the
     true pose scores above 1000 random poses of the site."""
     world, robot, lik = _courtyard(gl_ctx)
     pose = np.array([12.0, 5.0, np.pi])  # on the site, looking at the buildings
-    cam = robot_camera(pose, robot.intrinsics, robot.image_size, robot.cam_from_robot).scaled(0.1)
+    cam = robot_camera(pose, robot.intrinsics, robot.image_size, robot.cam_from_robot).scaled(0.2)
     g = lik.model.render(cam, world.light)
     ref = g.color.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32) / 255
+    ref = ref.reshape(24, 2, 32, 2).mean(axis=(1, 3))
     got = lik.render(pose[None], (32, 24))[0]
     assert (g.depth <= 0).mean() > 0.2  # sky in view
     assert np.abs(got - ref).mean() < 0.01
@@ -97,6 +100,9 @@ class _TwoPlaces:
     def set_observation(self, image, size):
         pass
 
+    def observed_contrast(self):
+        return 1.0
+
     def ncc(self, poses, size):
         poses = np.atleast_2d(poses)
         out = np.zeros(len(poses))
@@ -130,3 +136,18 @@ def test_two_places_the_likelihood_cannot_tell_apart_get_no_claim():
     mcl = _filter(_TwoPlaces([[1, 1], [3, 1]], [0.9, 0.4]))
     steps = [mcl.step(still, still, None) for _ in range(8)]
     assert steps[-1].converged and np.hypot(*(steps[-1].estimate[:2] - [1, 1])) < 0.15
+
+
+def test_se2_backward_undoes_the_odometry_motion():
+    rng = np.random.default_rng(0)
+    then, now = np.array([1.0, 2.0, 0.3]), np.array([1.5, 2.4, 0.9])
+    poses = np.c_[rng.uniform(-5, 5, (20, 2)), rng.uniform(-np.pi, np.pi, 20)]
+    back = se2_backward(poses, then, now)
+    assert apply_odometry(back, odometry_decomposition(then, now)) == pytest.approx(poses)
+
+
+def test_the_temperature_is_the_best_views_shortfall_within_bounds():
+    assert calibrated_temperature(np.array([0.2, 0.98, 0.5]), 0.01, 0.05) == pytest.approx(0.02)
+    assert calibrated_temperature(np.array([0.2, 0.5]), 0.01, 0.05) == 0.05  # lost: no flatter than before
+    floor = 1 / (12 * 255**2) / 0.01  # 8-bit quantisation's share of a contrast of 0.01
+    assert calibrated_temperature(np.array([1.0]), 0.01, 0.05) == pytest.approx(floor)
