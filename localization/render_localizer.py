@@ -2,10 +2,11 @@
 the pose by photometric Gauss-Newton, and say whether it localised.
 
     particle filter (Heigl et al. / Loc-NeRF, annealed; `pose6_filter`) on a coarse model at
-    24-48 px  ->  its distinct modes  ->  Gauss-Newton on each (`direct_alignment`, coarse
-    model, 48-96 px)  ->  the best few again on the fine model (192-384 px)  ->  the verdict
-    (`confidence`: agreement with what the model reaches at its own photos, trusted support,
-    no rival mode).
+    24-48 px  ->  its distinct modes, and pose proposals from features of the model's own
+    rendered views (`rendered_matches`)  ->  Gauss-Newton on each (`direct_alignment`, coarse
+    model, 48-96 px)  ->  the best few and the best proposal again on the fine model
+    (192-384 px)  ->  the verdict (`confidence`: agreement with what the model reaches at its
+    own photos, trusted support, no plausible rival mode).
 
 The Gauss-Newton steps replace the fine annealing steps of a pure particle filter (the
 gradient does in a dozen renders what a hundred particles do in each of many steps),
