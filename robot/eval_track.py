@@ -126,19 +126,22 @@ def run_tracking(world: SyntheticWorld, seed: int, config: TrackConfig = TrackCo
         mcl.pf.init_gaussian(start, [0.05, 0.05, np.radians(2)])
     legs = _drive_from(robot, route, s0, length, seed)
     errors, claims, odom = [], [], robot.odometry()
-    for step in range(config.steps):
-        if step == config.kidnap_step:
-            robot.kidnap(_far_route_pose(robot, route, length, rng))
-            legs = _drive_from(robot, route, None, length, seed + 1)
-        if next(legs, None) is None:
-            break
-        photo = robot.capture()
-        report: WorldStep = mcl.step(odom, photo.odometry, photo.image)
-        odom = photo.odometry
-        errors.append(pose_error(report.estimate, robot.true_pose))
-        claims.append(report.converged)
-        if on_step:
-            on_step(step, report, robot, photo, mcl)
+    try:
+        for step in range(config.steps):
+            if step == config.kidnap_step:
+                robot.kidnap(_far_route_pose(robot, route, length, rng))
+                legs = _drive_from(robot, route, None, length, seed + 1)
+            if next(legs, None) is None:
+                break
+            photo = robot.capture()
+            report: WorldStep = mcl.step(odom, photo.odometry, photo.image)
+            odom = photo.odometry
+            errors.append(pose_error(report.estimate, robot.true_pose))
+            claims.append(report.converged)
+            if on_step:
+                on_step(step, report, robot, photo, mcl)
+    finally:  # each trial's likelihood renderer holds atlases of thousands of views
+        mcl.lik.model.release()
     s = mcl.settings
     return {"seed": seed, **score_run(np.array(errors), np.array(claims, bool), config, mcl.config.converged_m),
             "settings": {"n_global": s.n_global, "basin_m": round(s.basin.m, 4),
