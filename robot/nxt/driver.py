@@ -28,6 +28,15 @@ from robot.nxt import protocol as P
 from robot.protocol import MotionResult, Photo, forward_camera_mount
 
 
+try:
+    import termios
+    LINK_ERRORS: tuple[type[BaseException], ...] = (serial.SerialException, OSError, termios.error)
+    """What a lost serial link raises: pyserial's error, the OS's, and on POSIX termios's (its
+    `tcflush` of a port that vanished mid-command raises termios.error, not an OSError)."""
+except ImportError:  # not POSIX
+    LINK_ERRORS = (serial.SerialException, OSError)
+
+
 class RobotConnectionError(InputError):
     """The robot's port does not exist, is not an NXT, or was lost; names the port."""
 
@@ -67,7 +76,7 @@ class NXTLink:
         if self.serial is not None:
             try:
                 self.serial.close()
-            except (serial.SerialException, OSError):
+            except LINK_ERRORS:
                 pass
             self.serial = None
 
@@ -102,7 +111,7 @@ class NXTLink:
                 if not want_reply:
                     return None
                 reply = self._await(opcode)
-            except (serial.SerialException, OSError):
+            except LINK_ERRORS:
                 self.reconnect()
                 continue
             if reply is not None:
@@ -309,7 +318,7 @@ class NXTRobot:
     def _safe_stop(self) -> None:
         try:
             self.stop()
-        except (InputError, serial.SerialException, OSError):
+        except (InputError, *LINK_ERRORS):
             pass  # the link is gone; the brick's tacho limits stop the wheels
 
     def stop(self) -> None:
