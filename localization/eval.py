@@ -16,7 +16,6 @@ from ibr.proxy.proxy_geometry import build_proxy
 from ibr.proxy.triangulation import sift_features
 from ibr.scene import Scene, View
 from localization.confidence import judge
-from localization.direct_alignment import refine_pose
 from localization.feature_localizer import pose_errors
 from localization.localize import METHODS, LocalizeError, LocConfig, SceneLocalizer
 from localization.pose6_filter import cam_from_world_of, sample_around
@@ -168,13 +167,10 @@ def aligned_from_truth(model: RenderModel, query: View, config: LocConfig) -> di
     localise the photo at all: the fine alignment started at the true pose, its errors and
     its verdict (rivals ignored). A failed query whose alignment from the truth is localised
     failed the search; one whose alignment from the truth is not, failed for the model."""
-    cfg = model.config
     cam = query.camera
-    widths = tuple(min(w, cam.width) for w in cfg.refine_widths)
-    a = refine_pose(model.fine.renderer, query.image, cam, cam.cam_from_world, widths, cfg.align, cfg.likelihood,
-                    model.fine.focus, model.light)
+    a = model.align(model.fine, query.image, cam, cam.cam_from_world, model.fine_widths(cam))
     pos, rot = pose_errors(a.cam_from_world, cam.cam_from_world)
-    v = judge(a, model.reference, None, cfg.confidence)
+    v = judge(a, model.reference, None, model.config.confidence)
     return {"position_m": float(pos), "rotation_deg": float(rot), "explained": a.explained,
             "trusted": a.trusted, "localized": v.localized,
             "success": bool(pos < config.success_m and rot < config.success_deg)}

@@ -78,6 +78,25 @@ def pycolmap_camera(camera: Camera) -> pycolmap.Camera:
                            params=[K[0, 0], K[1, 1], K[0, 2], K[1, 2]])
 
 
+def ransac_pnp(uv: np.ndarray, xyz: np.ndarray, camera: pycolmap.Camera, max_error_px: float,
+               refine_focal: bool = False) -> tuple[np.ndarray, dict] | None:
+    """pycolmap's LO-RANSAC P3P + non-linear refinement of pixels (M, 2) onto world points
+    (M, 3) (seeded, so repeatable): (cam_from_world (4, 4), pycolmap's result with
+    num_inliers and inlier_mask), or None when it finds no pose. With refine_focal the
+    refined focal length is written into `camera`'s params."""
+    est = pycolmap.AbsolutePoseEstimationOptions()
+    est.ransac.max_error = max_error_px
+    est.ransac.random_seed = 0
+    ref = pycolmap.AbsolutePoseRefinementOptions()
+    ref.refine_focal_length = refine_focal
+    res = pycolmap.estimate_and_refine_absolute_pose(uv.astype(np.float64), xyz.astype(np.float64), camera, est, ref)
+    if res is None:
+        return None
+    T = rigid(np.eye(3), np.zeros(3))
+    T[:3, :] = res["cam_from_world"].matrix()
+    return T, res
+
+
 def triangulated_tracks(cameras: list[Camera], feats: list[Features], cfg: TriangulationConfig
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Triangulate epipolar-consistent matches of neighbouring views (known poses).
@@ -151,18 +170,11 @@ class FeatureMap:
         if len(m) < max(4, self.config.min_inliers):
             return None
         cfg = self.config
-        est = pycolmap.AbsolutePoseEstimationOptions()
-        est.ransac.max_error = cfg.ransac_max_error_px
-        est.ransac.random_seed = 0
-        ref = pycolmap.AbsolutePoseRefinementOptions()
-        ref.refine_focal_length = refine_focal
         cam = pycolmap_camera(camera)
-        res = pycolmap.estimate_and_refine_absolute_pose(
-            feats.uv[m[:, 0]].astype(np.float64), self.points[m[:, 1]].astype(np.float64), cam, est, ref)
-        if res is None or res["num_inliers"] < cfg.min_inliers:
+        found = ransac_pnp(feats.uv[m[:, 0]], self.points[m[:, 1]], cam, cfg.ransac_max_error_px, refine_focal)
+        if found is None or found[1]["num_inliers"] < cfg.min_inliers:
             return None
-        T = rigid(np.eye(3), np.zeros(3))
-        T[:3, :] = res["cam_from_world"].matrix()
+        T, res = found
         K = camera.K.copy()
         if refine_focal:
             fx, fy = cam.params[0], cam.params[1]

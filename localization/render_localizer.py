@@ -140,6 +140,18 @@ class RenderModel:
         for level in (self.fine, self.coarse):
             level.likelihood.release()
 
+    def align(self, level: ModelLevel, image: np.ndarray, camera: Camera, cam_from_world: np.ndarray,
+              widths: tuple[int, ...]) -> Alignment:
+        """Gauss-Newton alignment (`direct_alignment.refine_pose`) of `image` ((H, W, 3) uint8,
+        intrinsics of `camera`) on `level` from `cam_from_world`, coarse to fine over `widths`."""
+        c = self.config
+        return refine_pose(level.renderer, image, camera, cam_from_world, widths, c.align, c.likelihood,
+                           level.focus, self.light)
+
+    def fine_widths(self, camera: Camera) -> tuple[int, ...]:
+        """`refine_widths` capped at the photo's width (pixels)."""
+        return tuple(min(w, camera.width) for w in self.config.refine_widths)
+
     def reference_explained(self) -> float:
         """`reference`: aligned-pose "explained" share over `reference_views` map photos."""
         n = len(self.cameras)
@@ -230,9 +242,8 @@ def localize_by_rendering(model: RenderModel, image: np.ndarray, camera: Camera,
     modes = distinct_modes(list(cam_from_world_of(est.particles)), est.costs, cfg.modes,
                            cfg.mode_separation_px, model.depth_m, f_filter)
     extra = list(starts) + proposals(model, image, camera, prior, modes[:cfg.proposal_views])
-    coarse = [refine_pose(model.coarse.renderer, image, camera, T, cfg.coarse_widths, cfg.align,
-                          cfg.likelihood, model.coarse.focus, model.light) for T in modes + extra]
-    widths = tuple(min(w, camera.width) for w in cfg.refine_widths)
+    coarse = [model.align(model.coarse, image, camera, T, cfg.coarse_widths) for T in modes + extra]
+    widths = model.fine_widths(camera)
     f_fine = comparison_camera(camera, widths[-1]).K[0, 0]
     seeds = distinct_modes([a.cam_from_world for a in coarse], np.array([a.cost for a in coarse]),
                            cfg.fine_modes, cfg.confidence.distinct_px, model.depth_m, f_fine)
@@ -240,8 +251,7 @@ def localize_by_rendering(model: RenderModel, image: np.ndarray, camera: Camera,
         best_extra = min(coarse[len(modes):], key=lambda a: a.cost).cam_from_world
         if all(pose_distance_px(best_extra, T, model.depth_m, f_fine) > cfg.confidence.distinct_px for T in seeds):
             seeds.append(best_extra)
-    fine = sorted((refine_pose(model.fine.renderer, image, camera, T, widths, cfg.align, cfg.likelihood,
-                               model.fine.focus, model.light) for T in seeds), key=lambda a: a.cost)
+    fine = sorted((model.align(model.fine, image, camera, T, widths) for T in seeds), key=lambda a: a.cost)
     best = fine[0]
     rivals = [a.cost - best.cost for a in fine[1:] if plausible(a, model.reference, cfg.confidence)
               and pose_distance_px(a.cam_from_world, best.cam_from_world, model.depth_m, f_fine)

@@ -27,13 +27,12 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-import pycolmap
 from scipy import ndimage
 from scipy.spatial.transform import Rotation
 
-from ibr.camera import Camera, rigid
+from ibr.camera import Camera
 from ibr.proxy.triangulation import Features, sift_features
-from localization.feature_localizer import pycolmap_camera
+from localization.feature_localizer import pycolmap_camera, ransac_pnp
 from localization.render_likelihood import comparison_camera
 
 
@@ -105,21 +104,14 @@ def match_ratio(query: np.ndarray, train: np.ndarray, ratio: float) -> np.ndarra
 
 def pnp_pose(uv: np.ndarray, xyz: np.ndarray, camera: Camera, max_error_px: float,
              min_inliers: int) -> tuple[np.ndarray, int] | None:
-    """RANSAC PnP (pycolmap, LO-RANSAC P3P + refinement) of pixels (M, 2) of `camera` onto
-    world points (M, 3): (cam_from_world (4, 4), inliers), or None below min_inliers."""
+    """RANSAC PnP (`feature_localizer.ransac_pnp`) of pixels (M, 2) of `camera` onto world
+    points (M, 3): (cam_from_world (4, 4), inliers), or None below min_inliers."""
     if len(uv) < max(4, min_inliers):
         return None
-    est = pycolmap.AbsolutePoseEstimationOptions()
-    est.ransac.max_error = max_error_px
-    est.ransac.random_seed = 0
-    res = pycolmap.estimate_and_refine_absolute_pose(uv.astype(np.float64), xyz.astype(np.float64),
-                                                     pycolmap_camera(camera), est,
-                                                     pycolmap.AbsolutePoseRefinementOptions())
-    if res is None or res["num_inliers"] < min_inliers:
+    found = ransac_pnp(uv, xyz, pycolmap_camera(camera), max_error_px)
+    if found is None or found[1]["num_inliers"] < min_inliers:
         return None
-    T = rigid(np.eye(3), np.zeros(3))
-    T[:3, :] = res["cam_from_world"].matrix()
-    return T, int(res["num_inliers"])
+    return found[0], int(found[1]["num_inliers"])
 
 
 def rendered_proposals(renderer, focus, image: np.ndarray, camera: Camera, prior: np.ndarray,
