@@ -75,3 +75,14 @@ def sample_motion_model_random_walk(poses: np.ndarray, std: np.ndarray, rng: np.
     out = poses + rng.normal(size=poses.shape) * np.asarray(std, dtype=np.float64)
     out[:, 2] = wrap_angle(out[:, 2])
     return out
+
+
+def se2_backward(poses: np.ndarray, odom_then: np.ndarray, odom_now: np.ndarray) -> np.ndarray:
+    """(N, 3) poses at the time of `odom_then` of robots now at `poses` (N, 3), moved back
+    by the odometry's relative motion from `odom_then` to `odom_now` (without noise)."""
+    c, s = np.cos(odom_then[2]), np.sin(odom_then[2])
+    dx, dy = odom_now[:2] - odom_then[:2]
+    d = np.array([c * dx + s * dy, -s * dx + c * dy])  # in the robot's frame then
+    th = wrap_angle(poses[:, 2] - (odom_now[2] - odom_then[2]))
+    ct, st = np.cos(th), np.sin(th)
+    return np.c_[poses[:, 0] - (ct * d[0] - st * d[1]), poses[:, 1] - (st * d[0] + ct * d[1]), th]

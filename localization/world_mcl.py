@@ -40,7 +40,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from localization.level_view_likelihood import LevelViewLikelihood
-from localization.motion_models import sample_motion_model_odometry, wrap_angle
+from localization.motion_models import sample_motion_model_odometry, se2_backward, wrap_angle
 from localization.particle_filter import (ParticleFilter, ParticleFilterConfig, effective_sample_size,
                                           sample_free_poses)
 from localization.view_search import PanoramaIndex
@@ -178,6 +178,9 @@ class WorldMCLConfig:
     rival must fit the last few photos, not this one only (measured in the courtyard: each
     step's probes found poses that fit that one photo as well as the truth, and a claim was
     never made). A count of photos, the same in every world."""
+    track_steps: int = 5
+    """Photos of the track whose cells the search also ranks (`_searched`): as many as a
+    rival's history, for the same reason."""
 
 
 @dataclass
@@ -228,17 +231,6 @@ def calibrated_temperature(ncc: np.ndarray, contrast: float, ceiling: float) -> 
     return float(np.clip(1.0 - np.max(ncc), floor, ceiling)) if len(ncc) else ceiling
 
 
-def se2_backward(poses: np.ndarray, odom_then: np.ndarray, odom_now: np.ndarray) -> np.ndarray:
-    """(N, 3) poses at the time of `odom_then` of robots now at `poses` (N, 3), moved back
-    by the odometry's relative motion from `odom_then` to `odom_now` (without noise)."""
-    c, s = np.cos(odom_then[2]), np.sin(odom_then[2])
-    dx, dy = odom_now[:2] - odom_then[:2]
-    d = np.array([c * dx + s * dy, -s * dx + c * dy])  # in the robot's frame then
-    th = wrap_angle(poses[:, 2] - (odom_now[2] - odom_then[2]))
-    ct, st = np.cos(th), np.sin(th)
-    return np.c_[poses[:, 0] - (ct * d[0] - st * d[1]), poses[:, 1] - (st * d[0] + ct * d[1]), th]
-
-
 def local_ring(pose: np.ndarray, step_m: float, step_rad: float) -> np.ndarray:
     """(20, 3) poses around `pose`: 8 directions at one and two `step_m` (same heading), and
     the heading turned by one and two `step_rad` either way."""
@@ -276,7 +268,7 @@ class WorldMCL:
         self.search = search
         self._image: np.ndarray | None = None
         if search is not None:  # augmented MCL's injections come from the photo too
-            pf.injection_source = lambda n: search.best_poses(self._image, n, pf.rng, self.settings.n_global)[0]
+            pf.injection_source = lambda n: self._searched(self._image, n, self.settings.n_global)
         self.seed_next = False
         """Whether the next step replaces the cloud by the photo's best poses."""
         self.converged = False
@@ -352,7 +344,7 @@ class WorldMCL:
         # basin of another place in a large site as a uniform prior does (measured in
         # courtyard 2: a claim held 21.8 m / 157 deg off for 2 steps, no probe near the truth)
         probes = sample_free_poses(pf.free, n_probes, pf.rng) if self.search is None else \
-            self.search.best_poses(image, n_probes, pf.rng)[0]
+            self._searched(image, n_probes)
         away = (np.hypot(*(probes[:, :2] - est[:2]).T) > 2 * c.converged_m) | \
                (np.abs(wrap_angle(probes[:, 2] - est[2])) > 2 * c.converged_rad)
         probes = probes[away]
@@ -459,7 +451,21 @@ class WorldMCL:
         n = self.settings.n_global
         if self.search is None:
             return sample_free_poses(self.pf.free, n, self.pf.rng)
-        return self.search.best_poses(image, n, self.pf.rng)[0]
+        return self._searched(image, n)
+
+    def _searched(self, image: np.ndarray, n: int, n_cells: int | None = None) -> np.ndarray:
+        """n poses (n, 3) from the search: half from the photo's best cells, half from the
+        best cells of the track of the last `track_steps` photos along the odometry
+        (`PanoramaIndex.track_scores`; all from the photo while there is no history). The
+        photo alone is right at once after a kidnapping, whose track is stale for a few
+        steps; the track where one photo fits many places alike. n_cells: draw among that
+        many best cells (`PanoramaIndex.best_poses`)."""
+        rng, track = self.pf.rng, (self.history + [(self.odom, image)])[-self.config.track_steps:]
+        if len(track) < 2 or n < 2:
+            return self.search.best_poses(image, n, rng, n_cells)[0]
+        k = n // 2
+        return np.r_[self.search.best_poses(image, k, rng, n_cells)[0],
+                     self.search.best_poses(image, n - k, rng, n_cells, track)[0]]
 
     def _global_injection(self, image: np.ndarray) -> None:
         """Keep the current cloud (resampled to at most half the global count) and add

@@ -9,9 +9,9 @@ from ibr.synthetic import make_world
 from localization.level_view_likelihood import LevelViewLikelihood, ncc_rows
 from localization.particle_filter import effective_sample_size, sample_free_poses
 from localization.render_likelihood import likelihood_renderer
-from localization.motion_models import apply_odometry, odometry_decomposition
+from localization.motion_models import apply_odometry, odometry_decomposition, se2_backward
 from localization.world_mcl import (Basin, MCLSettings, calibrated_temperature, ess_temperature, measure_basin,
-                                    mode_estimate, se2_backward)
+                                    mode_estimate)
 from robot.protocol import robot_camera
 from robot.sim_robot import SimRobot, SimRobotConfig
 
