@@ -50,7 +50,13 @@ class CircleConfig:
     floor_sigma: float = 0.01
     """Relative noise of a model's scale from its floor plane (`map_building.floor_depth`)."""
     floor_trust: float = np.log(1.25)
-    """A floor's scale further than this (log) from what the circles and odometry say is wrong."""
+    """A floor's scale further than this (log) from the odometry's is wrong ..."""
+    floor_sure_points: int = 50
+    """... unless this many points hold it (then only beyond twice `floor_trust`, as the
+    odometry of a drive with bumps and back-ups was 27 % off): a small model's "floor" held
+    by fewer was often a furniture top or a stray layer (apartment seeds 1, 3, 6, 9: 12-48
+    points, 0.27-2.3 times the true scale), while the floors of 50 points or more were
+    within 5 % (seeds 0-9). A count of points, as `floor_depth`'s `min_points`."""
     max_turn_rad: float = np.radians(15.0)
     """A model whose circles lie further than this from the directions the robot drove is
     wrong (rad): the compass-aided odometry's heading (2 degrees) and the mount's bias on a
@@ -66,13 +72,15 @@ class CircleConfig:
 @dataclass
 class LevelledModel:
     """One SfM model in its levelled frame (z along the cameras' up): photo indices `idx`
-    (n,), camera centres `xy` (n, 2) in model units, camera yaws `yaw` (n,) rad, and
-    `floor_scale` metres per model unit from its floor plane (None: no floor found)."""
+    (n,), camera centres `xy` (n, 2) in model units, camera yaws `yaw` (n,) rad,
+    `floor_scale` metres per model unit from its floor plane (None: no floor found) and
+    `floor_points` the points that hold that floor."""
 
     idx: np.ndarray
     xy: np.ndarray
     yaw: np.ndarray
     floor_scale: float | None
+    floor_points: int = 0
 
 
 @dataclass
@@ -188,37 +196,51 @@ def _scaled(models: list[LevelledModel], keep: list[int], circle: np.ndarray, fl
     return known
 
 
-def _floor_agrees(model: LevelledModel, circle: np.ndarray, heading: np.ndarray, dr_cam_xy: np.ndarray,
-                  config: CircleConfig) -> bool:
-    """Whether a model's floor scale is within `floor_trust` of the dead reckoning's (the
-    2-D fit of its cameras onto their dead-reckoning positions), when it spans two circles
-    or more (one circle's cameras are only the mount apart: no scale to check against)."""
-    if len(np.unique(circle[model.idx])) < 2:
-        return True
+def _circle_means(model: LevelledModel, circle: np.ndarray, heading: np.ndarray) -> dict[int, np.ndarray]:
+    """{circle: the mean (2,) of the model's cameras on it}, in model units, turned by the
+    compass (the model's heading: the circular mean of compass minus model yaw)."""
     a = float(np.angle(np.mean(np.exp(1j * (heading[model.idx] - model.yaw)))))
-    p, q = model.xy @ _rot(a).T, dr_cam_xy[model.idx]
-    pc, qc = p - p.mean(0), q - q.mean(0)
-    s_dr = float(np.sum(pc * qc) / max(np.sum(pc * pc), 1e-12))
-    return s_dr > 0 and abs(np.log(model.floor_scale / s_dr)) < config.floor_trust
+    p = model.xy @ _rot(a).T
+    ks = circle[model.idx]
+    return {int(k): p[ks == k].mean(0) for k in np.unique(ks)}
+
+
+def _drives(model: LevelledModel, circle: np.ndarray, heading: np.ndarray, dr_xy: np.ndarray,
+            driven_m: np.ndarray, config: CircleConfig):
+    """(model step (2,), odometry step (2,) m) between each two circles of the model in a row
+    whose odometry step is longer than three times its noise (`odometry_drift` of the
+    distance driven between them): only those tell a direction and a length."""
+    mean = _circle_means(model, circle, heading)
+    ks = sorted(mean)
+    first = {k: int(np.flatnonzero(circle == k)[0]) for k in ks}
+    out = []
+    for k0, k1 in zip(ks[:-1], ks[1:]):
+        v = dr_xy[first[k1]] - dr_xy[first[k0]]
+        sigma = config.odometry_sigma_m + config.odometry_drift * (driven_m[first[k1]] - driven_m[first[k0]])
+        if np.linalg.norm(v) > 3 * sigma:
+            out.append((mean[k1] - mean[k0], v))
+    return out
 
 
 def _drives_agree(model: LevelledModel, circle: np.ndarray, heading: np.ndarray, dr_xy: np.ndarray,
-                  config: CircleConfig) -> bool:
-    """Whether the directions between a model's circles (the mean of each circle's cameras,
-    turned by the compass) agree with the odometry's within `max_turn_rad` (compass-aided
-    dead reckoning gets a drive's direction to a few degrees, its length only to ~15 %)."""
-    ks = np.unique(circle[model.idx])
-    if len(ks) < 2:
+                  driven_m: np.ndarray, config: CircleConfig) -> bool:
+    """Whether the directions between a model's circles (`_drives`) agree with the
+    odometry's within `max_turn_rad` (compass-aided dead reckoning gets a drive's direction
+    to a few degrees, its length only to ~15 %)."""
+    return all(abs(np.angle(complex(*u) / complex(*v))) <= config.max_turn_rad
+               for u, v in _drives(model, circle, heading, dr_xy, driven_m, config))
+
+
+def _floor_agrees(model: LevelledModel, circle: np.ndarray, heading: np.ndarray, dr_xy: np.ndarray,
+                  driven_m: np.ndarray, config: CircleConfig) -> bool:
+    """Whether a model's floor scale is within `floor_trust` of the odometry's (the length
+    of its drives, `_drives`, over theirs in the model); True when no drive tells a length."""
+    steps = _drives(model, circle, heading, dr_xy, driven_m, config)
+    if not steps:
         return True
-    a = float(np.angle(np.mean(np.exp(1j * (heading[model.idx] - model.yaw)))))
-    p = model.xy @ _rot(a).T
-    mean = {int(k): p[circle[model.idx] == k].mean(0) for k in ks}
-    first = {int(k): dr_xy[np.flatnonzero(circle == k)[0]] for k in ks}
-    for k0, k1 in zip(ks[:-1], ks[1:]):
-        u, v = mean[int(k1)] - mean[int(k0)], first[int(k1)] - first[int(k0)]
-        if abs(np.angle(complex(*u) / complex(*v))) > config.max_turn_rad:
-            return False
-    return True
+    s_dr = sum(np.linalg.norm(v) for _, v in steps) / max(sum(np.linalg.norm(u) for u, _ in steps), 1e-12)
+    trust = config.floor_trust * (2 if model.floor_points >= config.floor_sure_points else 1)
+    return abs(np.log(model.floor_scale / s_dr)) < trust
 
 
 def place_models(models: list[LevelledModel], circle: np.ndarray, heading: np.ndarray, dr_xy: np.ndarray,
@@ -233,10 +255,10 @@ def place_models(models: list[LevelledModel], circle: np.ndarray, heading: np.nd
     that misses its circles by over `max_rms_m`, is left out; when no model has a floor,
     the largest is kept with the odometry's scale."""
     floors = {m: model.floor_scale for m, model in enumerate(models)
-              if model.floor_scale and _floor_agrees(model, circle, heading, dr_cam_xy, config)}
+              if model.floor_scale and _floor_agrees(model, circle, heading, dr_xy, driven_m, config)}
     # a model whose circles lie in other directions than the compass-aided odometry drove
     # is wrong (SfM's mirrored or folded solutions of two circles seen down a corridor)
-    keep = [m for m in range(len(models)) if _drives_agree(models[m], circle, heading, dr_xy, config)] or [0]
+    keep = [m for m in range(len(models)) if _drives_agree(models[m], circle, heading, dr_xy, driven_m, config)] or [0]
     while True:
         floors = {m: f for m, f in floors.items() if m in keep}
         # keep only the models whose scale is known (the largest's, from odometry, when none is)

@@ -389,7 +389,8 @@ def _levelled(rec, rig: _Rig):
     f = np.array([cams[i].world_from_cam[:3, 2] for i in idx]) @ level.T
     points = np.array([q.xyz for q in rec.points3D.values()]).reshape(-1, 3)
     floor = floor_depth(((points - c0) @ level.T)[:, 2]) if len(points) else None
-    model = LevelledModel(idx, p[:, :2], np.arctan2(f[:, 1], f[:, 0]), None if floor is None else rig.height / floor[0])
+    model = LevelledModel(idx, p[:, :2], np.arctan2(f[:, 1], f[:, 0]), None if floor is None else rig.height / floor[0],
+                          0 if floor is None else floor[1])
     return model, rec, (c0, level), cams
 
 
