@@ -11,7 +11,10 @@ camera's (known) height below the cameras (`floor_alignment`; the 2-D similarity
 dead-reckoning positions gives it only when no floor is found: the simulated odometry is 14 %
 off per drive, and a random stage has 2-3 drives, so that scale was 10-17 % off); the compass
 gives the heading and the dead reckoning the position, weighted towards the photos taken
-before the first drive (at the known start).
+before the first drive (at the known start). SfM of a random stage breaks into several
+models (one per sector of headings: a circle of photos is a pure rotation, and where a
+circle faces a bare wall nothing is triangulated); `map_from_models` places them together
+by the robot's circles and poses the circles' remaining photos (`robot.mission.circles`).
 
 `extend_map` adds photos whose poses were localised (PnP) later: their SIFT features are
 matched with their stereo partners (`stereo_tracks`) and triangulated with the poses *fixed*
@@ -126,8 +129,8 @@ def heading_pairs(headings: np.ndarray, max_diff_rad: float) -> np.ndarray:
 def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, config: MapConfig, work: Path):
     """pycolmap incremental SfM of `images` (H, W, 3) uint8 with the known shared `K`, matching
     only the photos whose compass `headings` (rad) are within `config.match_heading_rad`.
-    Returns every reconstruction, largest first (photos that share no features, e.g. in two
-    rooms, make separate models; `initial_map` puts each in metres on its own)."""
+    Returns every reconstruction, largest first (the circles' sectors of headings, or
+    photos that share no features, make separate models; `map_from_models` places them)."""
     import pycolmap
 
     img_dir = work / "images"
