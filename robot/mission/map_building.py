@@ -403,7 +403,8 @@ def _world_from_sfm(frame: tuple[np.ndarray, np.ndarray], s: float, a: float, t:
     heading `a` (rad) and shift `t` (2,) m, its cameras' mean at the camera `height`."""
     c0, level = frame
     S = np.eye(4)
-    S[:2, :2], S[:2, 3], S[2, 2], S[2, 3] = s * np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]), t, s, height
+    S[:2, :2] = s * np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    S[:2, 3], S[2, 2], S[2, 3] = t, s, height
     return S @ rigid(level, -level @ c0)
 
 
