@@ -110,7 +110,11 @@ def _wrap(a):
 
 
 class _Problem:
-    """The least-squares problem of `place_models` over the models `keep`."""
+    """The least-squares problem of `place_models` over the models `keep`. Unknowns: per model
+    (log scale, heading rad, shift x, y m), per circle its robot position (x, y m). Residuals,
+    each over its sigma: a model's cameras less the mount, averaged per circle, at the
+    circle's centre; its cameras' yaws at the compass; its scale at its floor's (`floors`);
+    the first circle at the known start and each later one an odometry drive from the last."""
 
     def __init__(self, models, keep, circle, heading, dr_xy, driven_m, mount_xy, mount_yaw, config, floors):
         self.models, self.keep, self.cfg, self.floors = models, keep, config, floors
