@@ -11,7 +11,10 @@ camera's (known) height below the cameras (`floor_alignment`; the 2-D similarity
 dead-reckoning positions gives it only when no floor is found: the simulated odometry is 14 %
 off per drive, and a random stage has 2-3 drives, so that scale was 10-17 % off); the compass
 gives the heading and the dead reckoning the position, weighted towards the photos taken
-before the first drive (at the known start).
+before the first drive (at the known start). SfM of a random stage breaks into several
+models (one per sector of headings: a circle of photos is a pure rotation, and where a
+circle faces a bare wall nothing is triangulated); `map_from_models` places them together
+by the robot's circles and poses the circles' remaining photos (`robot.mission.circles`).
 
 `extend_map` adds photos whose poses were localised (PnP) later: their SIFT features are
 matched with their stereo partners (`stereo_tracks`) and triangulated with the poses *fixed*
@@ -38,6 +41,7 @@ from ibr.proxy.normals import estimate_normals, remove_outliers
 from ibr.proxy.poisson import PoissonConfig, poisson_mesh
 from ibr.proxy.sfm import colmap_errors_only
 from ibr.proxy.triangulation import TriangulationConfig, pair_tracks
+from robot.mission.circles import CircleConfig, LevelledModel, circle_ids, complete_circles, place_models
 
 
 log = logging.getLogger(__name__)
@@ -69,6 +73,8 @@ class MapConfig:
     thread: its OpenMP threads spin and crawl, 10x, on a busy 2-core machine)."""
     max_point_range_m: float = 12.0
     """Points farther than this from every camera are dropped (badly triangulated)."""
+    circles: CircleConfig = field(default_factory=CircleConfig)
+    """How SfM's models are placed together and the circles completed (`robot.mission.circles`)."""
 
 
 @dataclass
@@ -123,8 +129,8 @@ def heading_pairs(headings: np.ndarray, max_diff_rad: float) -> np.ndarray:
 def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, config: MapConfig, work: Path):
     """pycolmap incremental SfM of `images` (H, W, 3) uint8 with the known shared `K`, matching
     only the photos whose compass `headings` (rad) are within `config.match_heading_rad`.
-    Returns every reconstruction, largest first (photos that share no features, e.g. in two
-    rooms, make separate models; `initial_map` puts each in metres on its own)."""
+    Returns every reconstruction, largest first (the circles' sectors of headings, or
+    photos that share no features, make separate models; `map_from_models` places them)."""
     import pycolmap
 
     img_dir = work / "images"
@@ -304,59 +310,126 @@ def initial_map(images: list[np.ndarray], K: np.ndarray, estimates: np.ndarray, 
                 cam_from_robot: np.ndarray, config: MapConfig = MapConfig()) -> RobotMap:
     """The map of the random-exploration photos `images` with shared intrinsics `K`;
     `estimates` (N, 3) their dead-reckoning SE(2) poses (scale and heading of the frame),
-    `compass_rad` (N,) their compass readings (which photos to match)."""
+    `compass_rad` (N,) their compass readings (which photos to match). SfM's models (one per
+    sector of headings, `robot.mission.circles`) are placed in metres together by the
+    robot's circles of photos (`place_models`), then the photos of those circles that no
+    model posed are turned into place from a posed neighbour (`complete_circles`)."""
     if len(images) < config.min_registered:
         raise MapError(f"{len(images)} photos: SfM needs at least {config.min_registered}")
     work = Path(tempfile.mkdtemp(prefix="ibrnav_sfm_"))
     try:
         recs = run_sfm(images, K, compass_rad, config, work)
-        h, w = images[0].shape[:2]
-        cameras, parts = {}, []
-        for k, rec in enumerate(recs):
-            placed = _place_model(rec, K, (w, h), estimates, compass_rad, cam_from_robot, largest=k == 0)
-            if placed is not None:
-                cameras.update(placed[0])
-                parts.append(placed[1])
-        pts, cols, seen_from = (np.vstack([q[j] for q in parts]) for j in range(3))
-        log.info(f"initial map: {len(parts)} of {len(recs)} SfM models placed in metres "
-                 f"({[r.num_reg_images() for r in recs]} photos each)")
-        idx = sorted(cameras)
+        return map_from_models(recs, work / "database.db", K, images[0].shape[:2], estimates, compass_rad,
+                               cam_from_robot, config)
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    return _mesh_map(cameras, pts, cols, seen_from, config, registered=len(idx))
 
 
-def _place_model(rec, K: np.ndarray, size: tuple[int, int], estimates: np.ndarray, compass_rad: np.ndarray,
-                 cam_from_robot: np.ndarray, largest: bool):
-    """({index: Camera} in the floor frame, (points, colours, seen_from)) of one SfM model:
-    levelled, in metres by the floor and the camera height, turned by the compass, placed on
-    the dead reckoning (`floor_alignment`). A model with no floor in its points is kept only
-    when it is the largest (its scale then comes from the odometry); else None."""
+def map_from_models(recs: list, database: Path, K: np.ndarray, size_hw: tuple[int, int], estimates: np.ndarray,
+                    compass_rad: np.ndarray, cam_from_robot: np.ndarray, config: MapConfig = MapConfig()) -> RobotMap:
+    """`initial_map` from SfM's models `recs` (pycolmap reconstructions, largest first) and
+    its `database` (the matches): placed together in metres (`place_models`), the circles
+    completed (`complete_circles`), meshed. `size_hw` (height, width) of the photos (px)."""
+    h, w = size_hw
+    rig = _Rig(np.asarray(estimates, float), np.asarray(compass_rad, float), cam_from_robot, config)
+    models = [m for m in (_levelled(rec, rig) for rec in recs) if m is not None]
+    if not models:
+        raise MapError(f"no SfM model holds 3 photos or more ({[r.num_reg_images() for r in recs]})")
+    placement = place_models([m[0] for m in models], rig.circle, rig.heading, rig.estimates[:, :2],
+                             rig.cam_xy, rig.driven_m, rig.mount_xy, rig.mount_yaw, config.circles)
+    cameras, parts = {}, []
+    for k, (s, a, t) in placement.models.items():
+        model, rec, world_from_sfm = models[k][0], models[k][1], _world_from_sfm(models[k][2], s, a, t, rig.height)
+        cams = {int(i): Camera(K, w, h, _transform_camera(models[k][3][int(i)], world_from_sfm).cam_from_world,
+                               f"photo_{int(i):05d}") for i in model.idx}
+        parts.append(_sfm_points(rec, world_from_sfm, cams))
+        for i, c in cams.items():
+            cameras.setdefault(i, c)
+    sfm_posed = len(cameras)
+    added = complete_circles({i: c.world_from_cam for i, c in cameras.items()}, rig.circle, placement.centres,
+                             rig.heading, _Matches(database), K, rig.mount_xy, rig.mount_yaw, rig.height,
+                             config.circles)
+    cameras.update({i: Camera(K, w, h, np.linalg.inv(T), f"photo_{i:05d}") for i, T in added.items()})
+    pts, cols, seen_from = (np.vstack([q[j] for q in parts]) for j in range(3))
+    log.info(f"initial map: {len(placement.models)} of {len(recs)} SfM models placed in metres "
+             f"({[r.num_reg_images() for r in recs]} photos each; {sfm_posed} photos), "
+             f"{len(added)} more photos turned into place in their circles")
+    return _mesh_map(cameras, pts, cols, seen_from, config, registered=len(cameras))
+
+
+class _Rig:
+    """What the robot knows of each photo of the random stage: its `circle`, the camera's
+    compass `heading` (rad), the dead-reckoning `estimates` and camera position `cam_xy`,
+    `driven_m` before it; the camera's mount (`mount_xy` m, `mount_yaw` rad) and `height` (m)."""
+
+    def __init__(self, estimates: np.ndarray, compass_rad: np.ndarray, cam_from_robot: np.ndarray,
+                 config: MapConfig):
+        robot_from_cam = np.linalg.inv(cam_from_robot)
+        self.estimates, self.cam_from_robot = estimates, cam_from_robot
+        self.circle = circle_ids(estimates, config.circles)
+        self.mount_xy = robot_from_cam[:2, 3]
+        self.mount_yaw = float(np.arctan2(robot_from_cam[1, 2], robot_from_cam[0, 2]))
+        self.height = float(robot_from_cam[2, 3])
+        self.heading = np.array([_camera_yaw(np.r_[e[:2], c], cam_from_robot) for e, c in zip(estimates, compass_rad)])
+        self.cam_xy = np.array([_camera_xy(e, cam_from_robot) for e in estimates]).reshape(-1, 2)
+        self.driven_m = np.r_[0.0, np.cumsum(np.hypot(*np.diff(estimates[:, :2], axis=0).T))]
+
+
+def _levelled(rec, rig: _Rig):
+    """(LevelledModel, rec, (c0, level), {index: Camera in the SfM frame}) of one SfM model
+    (`_level`; its floor's scale from `floor_depth` and the camera height); None with fewer
+    than 3 photos."""
     cams = {int(Path(im.name).stem): Camera.from_pycolmap(im, rec.cameras[im.camera_id])
             for im in rec.images.values() if im.has_pose}
-    idx = sorted(cams)
+    idx = np.array(sorted(cams), int)
     if len(idx) < 3:
         return None
     centres = np.array([cams[i].center for i in idx])
-    up_in_cam = cam_from_robot[:3, :3] @ np.array([0.0, 0.0, 1.0])  # the floor's normal, seen by the camera
+    up_in_cam = rig.cam_from_robot[:3, :3] @ np.array([0.0, 0.0, 1.0])  # the floor's normal, seen by the camera
     ups = np.array([cams[i].world_from_cam[:3, :3] @ up_in_cam for i in idx])
-    fwd = np.array([cams[i].world_from_cam[:3, 2] for i in idx])
-    est = np.asarray(estimates)[idx]
-    cam_xy = np.array([_camera_xy(e, cam_from_robot) for e in est])
-    heading = np.array([_camera_yaw(np.r_[e[:2], c], cam_from_robot)
-                        for e, c in zip(est, np.asarray(compass_rad)[idx])])
-    sfm_points = np.array([p.xyz for p in rec.points3D.values()]).reshape(-1, 3)
-    steps = np.r_[0.0, np.cumsum(np.hypot(*np.diff(np.asarray(estimates)[:, :2], axis=0).T))]
-    world_from_sfm, how = floor_alignment(centres, ups, cam_xy, float(np.linalg.inv(cam_from_robot)[2, 3]),
-                                          sfm_points, fwd, heading, steps[idx])
-    if how != "floor" and not largest:
-        return None
-    log.info(f"initial map: a model of {len(idx)} photos, metric scale from "
-             f"{'the floor plane and the camera height' if how == 'floor' else 'odometry (no floor plane found)'}")
-    w, h = size  # COLMAP's K has the half-pixel offset: keep the known K
-    cameras = {i: Camera(K, w, h, _transform_camera(cams[i], world_from_sfm).cam_from_world, f"photo_{i:05d}")
-               for i in idx}
-    return cameras, _sfm_points(rec, world_from_sfm, cameras)
+    c0, level = _level(centres, ups)
+    p = (centres - c0) @ level.T
+    f = np.array([cams[i].world_from_cam[:3, 2] for i in idx]) @ level.T
+    points = np.array([q.xyz for q in rec.points3D.values()]).reshape(-1, 3)
+    floor = floor_depth(((points - c0) @ level.T)[:, 2]) if len(points) else None
+    model = LevelledModel(idx, p[:, :2], np.arctan2(f[:, 1], f[:, 0]), None if floor is None else rig.height / floor[0],
+                          0 if floor is None else floor[1])
+    return model, rec, (c0, level), cams
+
+
+def _world_from_sfm(frame: tuple[np.ndarray, np.ndarray], s: float, a: float, t: np.ndarray,
+                    height: float) -> np.ndarray:
+    """The 4x4 similarity of a levelled model (`frame` = (c0, level)) placed with scale `s`,
+    heading `a` (rad) and shift `t` (2,) m, its cameras' mean at the camera `height`."""
+    c0, level = frame
+    S = np.eye(4)
+    S[:2, :2] = s * np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    S[:2, 3], S[2, 2], S[2, 3] = t, s, height
+    return S @ rigid(level, -level @ c0)
+
+
+class _Matches:
+    """`matches(i, j)`: the (M, 2) pixel pairs (ibrnav's pixel centres) of photos i and j that
+    COLMAP's geometric verification kept, from its database (empty when never matched)."""
+
+    def __init__(self, db_path: Path):
+        import pycolmap
+
+        self.db = pycolmap.Database.open(db_path)
+        self.ids = {int(Path(im.name).stem): im.image_id for im in self.db.read_all_images()}
+        self.kp: dict[int, np.ndarray] = {}
+
+    def keypoints(self, i: int) -> np.ndarray:
+        if i not in self.kp:
+            self.kp[i] = self.db.read_keypoints(self.ids[i])[:, :2] - 0.5
+        return self.kp[i]
+
+    def __call__(self, i: int, j: int) -> tuple[np.ndarray, np.ndarray]:
+        a, b = self.ids[i], self.ids[j]
+        if not self.db.exists_two_view_geometry(a, b):
+            return np.zeros((0, 2)), np.zeros((0, 2))
+        m = np.asarray(self.db.read_two_view_geometry(a, b).inlier_matches, int).reshape(-1, 2)
+        return self.keypoints(i)[m[:, 0]], self.keypoints(j)[m[:, 1]]
 
 
 def _camera_yaw(pose: np.ndarray, cam_from_robot: np.ndarray) -> float:

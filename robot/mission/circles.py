@@ -1,0 +1,345 @@
+"""The random stage's circles of photos tie its SfM models together (Foster, Wang & Grupen,
+section IV-A: the robot turns in place through a circle of photos, then drives on).
+
+Incremental SfM of a random stage breaks into several models, not one per room but one per
+*sector of headings*: a circle's photos are a pure rotation about one centre (the camera
+sits `mount` metres off the turning axis, 5 cm), so only the matches *between* circles
+give depth, and wherever one circle faces a textureless wall (or a wall close up) no point
+is triangulated in that sector, the incremental mapper cannot register the next photo, and
+a new model starts (apartment seeds 0-9: 1-5 models; the largest held 19-31 of 108 photos on
+4 seeds). Every model spans at least two circles (a model needs a baseline), and all the
+photos of a circle were taken from one robot position. So:
+
+- `place_models` puts every model in the floor frame at once: one unknown centre per
+  circle, one similarity per model (scale, heading, shift), fitted by least squares to
+  the models' camera positions (each camera lies `mount` from its circle's centre), the
+  compass (heading), the floor's scale where a model found its floor, and the dead
+  reckoning of the circles' centres (the first circle stands at the known start);
+- `complete_circles` poses a photo no model registered from a posed photo of its own
+  circle: the rotation between the two from their matched features (a pure rotation: the
+  bearings' Procrustes fit), the position from the circle's centre.
+
+Frames: world metres, z up, floor z = 0; levelled model frames: z along the cameras' up.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+
+@dataclass(frozen=True)
+class CircleConfig:
+    """Settings of `place_models` and `complete_circles`."""
+
+    circle_move_m: float = 0.1
+    """Two photos in a row belong to one circle when the dead reckoning moved less than this
+    between them (m): a 10 degree turn in place moves it by the odometry's noise (~1 cm),
+    a drive between circles by 0.6-2 m (`RandomExplorationConfig`); the robot's, not the scene's."""
+    photo_sigma_m: float = 0.01
+    """SfM's noise on a camera's position, once in metres (m)."""
+    compass_sigma_rad: float = np.radians(2.0)
+    """The compass's noise per reading (rad; the robot's sensor)."""
+    odometry_sigma_m: float = 0.005
+    """Dead reckoning's noise at the known start (m)."""
+    odometry_drift: float = 0.15
+    """Dead reckoning's noise per metre driven between two circles (the simulated odometry
+    is ~14 % off per drive; the robot's, not the scene's)."""
+    floor_sigma: float = 0.01
+    """Relative noise of a model's scale from its floor plane (`map_building.floor_depth`)."""
+    floor_trust: float = np.log(1.25)
+    """A floor's scale further than this (log) from the odometry's is wrong ..."""
+    floor_sure_points: int = 50
+    """... unless this many points hold it (then only beyond twice `floor_trust`, as the
+    odometry of a drive with bumps and back-ups was 27 % off): a small model's "floor" held
+    by fewer was often a furniture top or a stray layer (apartment seeds 1, 3, 6, 9: 12-48
+    points, 0.27-2.3 times the true scale), while the floors of 50 points or more were
+    within 5 % (seeds 0-9). A count of points, as `floor_depth`'s `min_points`."""
+    max_turn_rad: float = np.radians(15.0)
+    """A model whose circles lie further than this from the directions the robot drove is
+    wrong (rad): the compass-aided odometry's heading (2 degrees) and the mount's bias on a
+    circle's mean (5 cm over >= 0.6 m) are well within it; the robot's, not the scene's."""
+    max_rms_m: float = 0.05
+    """A model whose cameras miss their circles by more than this (RMS, m) is dropped as wrong."""
+    min_matches: int = 15
+    """Fewest feature matches to turn a photo by (COLMAP's `min_num_matches`)."""
+    max_angle_px: float = 2.0
+    """A match further than this from the fitted rotation (pixels) is an outlier."""
+
+
+@dataclass
+class LevelledModel:
+    """One SfM model in its levelled frame (z along the cameras' up): photo indices `idx`
+    (n,), camera centres `xy` (n, 2) in model units, camera yaws `yaw` (n,) rad,
+    `floor_scale` metres per model unit from its floor plane (None: no floor found) and
+    `floor_points` the points that hold that floor."""
+
+    idx: np.ndarray
+    xy: np.ndarray
+    yaw: np.ndarray
+    floor_scale: float | None
+    floor_points: int = 0
+
+
+@dataclass
+class Placement:
+    """The floor-frame similarity of each kept model: `models` {model number: (scale m per
+    unit, heading rad, shift (2,) m)}, and `centres` {circle: robot position (2,) m}."""
+
+    models: dict[int, tuple[float, float, np.ndarray]]
+    centres: dict[int, np.ndarray]
+
+
+def circle_ids(estimates: np.ndarray, config: CircleConfig = CircleConfig()) -> np.ndarray:
+    """(N,) circle number of each photo from the dead-reckoning poses `estimates` (N, 3):
+    a new circle starts where the robot moved `circle_move_m` or more since the last photo."""
+    step = np.hypot(*np.diff(np.asarray(estimates, float)[:, :2], axis=0).T)
+    return np.r_[0, np.cumsum(step >= config.circle_move_m)].astype(int)
+
+
+def _rot(a) -> np.ndarray:
+    """2-D rotation matrices (..., 2, 2) of angles `a` (rad)."""
+    c, s = np.cos(a), np.sin(a)
+    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+
+
+def _wrap(a):
+    return np.angle(np.exp(1j * np.asarray(a)))
+
+
+class _Problem:
+    """The least-squares problem of `place_models` over the models `keep`. Unknowns: per model
+    (log scale, heading rad, shift x, y m), per circle its robot position (x, y m). Residuals,
+    each over its sigma: a model's cameras less the mount, averaged per circle, at the
+    circle's centre; its cameras' yaws at the compass; its scale at its floor's (`floors`);
+    the first circle at the known start and each later one an odometry drive from the last."""
+
+    def __init__(self, models, keep, circle, heading, dr_xy, driven_m, mount_xy, mount_yaw, config, floors):
+        self.models, self.keep, self.cfg, self.floors = models, keep, config, floors
+        # every circle up to the last a model holds: the dead reckoning chains them from the start
+        self.circles = list(range(max(int(circle[i]) for m in keep for i in models[m].idx) + 1))
+        self.col = {k: k for k in self.circles}
+        self.circle, self.heading, self.mount_xy, self.mount_yaw = circle, heading, mount_xy, mount_yaw
+        first = [int(np.flatnonzero(circle == k)[0]) for k in self.circles]
+        self.dr = dr_xy[first]
+        self.dr_step = np.diff(self.dr, axis=0)
+        self.dr_sigma = np.r_[config.odometry_sigma_m, config.odometry_sigma_m
+                              + config.odometry_drift * np.diff(np.asarray(driven_m)[first])]
+
+    def unpack(self, x):
+        n = 4 * len(self.keep)
+        return x[:n].reshape(-1, 4), x[n:].reshape(-1, 2)
+
+    def residuals(self, x) -> np.ndarray:
+        sim, centres = self.unpack(x)
+        # the start is known; each drive between circles is odometry's, `odometry_drift` of it off
+        steps = np.vstack([centres[:1] - self.dr[:1], np.diff(centres, axis=0) - self.dr_step])
+        out = [steps.ravel() / np.repeat(self.dr_sigma, 2)]
+        for (log_s, a, tx, ty), m in zip(sim, self.keep):
+            mod = self.models[m]
+            yaw = a + mod.yaw
+            cam = np.exp(log_s) * mod.xy @ _rot(a).T + [tx, ty]
+            robot = cam - _rot(yaw - self.mount_yaw) @ self.mount_xy
+            # each circle's cameras, less the mount, meet at its centre; their mean is the
+            # measurement (a circle's cameras are only the mount apart, too little to scale by)
+            ks = self.circle[mod.idx]
+            for k in np.unique(ks):
+                on = ks == k
+                miss = robot[on].mean(0) - centres[self.col[int(k)]]
+                # SfM's noise is in the model's own units: a model shrunk to a point fits no better
+                out.append(miss * np.sqrt(on.sum()) * (self.s0[m] / np.exp(log_s)) / self.cfg.photo_sigma_m)
+            out.append(_wrap(yaw - self.heading[mod.idx]) / self.cfg.compass_sigma_rad)
+            if m in self.floors:
+                out.append(np.atleast_1d((log_s - np.log(self.floors[m])) / self.cfg.floor_sigma))
+        return np.concatenate(out)
+
+    def start(self, dr_cam_xy: np.ndarray) -> np.ndarray:
+        """Heading from the compass, scale and shift from a 2-D fit onto the dead reckoning."""
+        x = []
+        for m in self.keep:
+            mod = self.models[m]
+            a = float(np.angle(np.mean(np.exp(1j * (self.heading[mod.idx] - mod.yaw)))))
+            p, q = mod.xy @ _rot(a).T, dr_cam_xy[mod.idx]
+            pc, qc = p - p.mean(0), q - q.mean(0)
+            s = mod.floor_scale or max(float(np.sum(pc * qc) / max(np.sum(pc * pc), 1e-12)), 1e-6)
+            x += [np.log(s), a, *(q.mean(0) - s * p.mean(0))]
+        return np.r_[x, self.dr.ravel()]
+
+    def solve(self, dr_cam_xy: np.ndarray) -> np.ndarray:
+        x0 = self.start(dr_cam_xy)
+        self.s0 = dict(zip(self.keep, np.exp(x0[:4 * len(self.keep):4])))
+        return least_squares(self.residuals, x0).x
+
+    def rms_m(self, x) -> dict[int, float]:
+        """Each model's RMS miss (m) of its cameras from their circles."""
+        sim, centres = self.unpack(x)
+        out = {}
+        for (log_s, a, tx, ty), m in zip(sim, self.keep):
+            mod = self.models[m]
+            cam = np.exp(log_s) * mod.xy @ _rot(a).T + [tx, ty]
+            robot = cam - _rot(a + mod.yaw - self.mount_yaw) @ self.mount_xy
+            c = centres[[self.col[int(k)] for k in self.circle[mod.idx]]]
+            out[m] = float(np.sqrt(np.mean(np.sum((robot - c) ** 2, axis=1))))
+        return out
+
+
+def _scaled(models: list[LevelledModel], keep: list[int], circle: np.ndarray, floors: dict) -> set[int]:
+    """The models whose scale is known: a floor of their own, or two circles shared with
+    models whose scale is known (two robot positions fix a length)."""
+    known = set(floors)
+    grew = True
+    while grew:
+        grew = False
+        known_circles = {int(c) for m in known for c in np.unique(circle[models[m].idx])}
+        for m in keep:
+            if m not in known and len(known_circles & set(np.unique(circle[models[m].idx]).tolist())) >= 2:
+                known.add(m)
+                grew = True
+    return known
+
+
+def _circle_means(model: LevelledModel, circle: np.ndarray, heading: np.ndarray) -> dict[int, np.ndarray]:
+    """{circle: the mean (2,) of the model's cameras on it}, in model units, turned by the
+    compass (the model's heading: the circular mean of compass minus model yaw)."""
+    a = float(np.angle(np.mean(np.exp(1j * (heading[model.idx] - model.yaw)))))
+    p = model.xy @ _rot(a).T
+    ks = circle[model.idx]
+    return {int(k): p[ks == k].mean(0) for k in np.unique(ks)}
+
+
+def _drives(model: LevelledModel, circle: np.ndarray, heading: np.ndarray, dr_xy: np.ndarray,
+            driven_m: np.ndarray, config: CircleConfig):
+    """(model step (2,), odometry step (2,) m) between each two circles of the model in a row
+    whose odometry step is longer than three times its noise (`odometry_drift` of the
+    distance driven between them): only those tell a direction and a length."""
+    mean = _circle_means(model, circle, heading)
+    ks = sorted(mean)
+    first = {k: int(np.flatnonzero(circle == k)[0]) for k in ks}
+    out = []
+    for k0, k1 in zip(ks[:-1], ks[1:]):
+        v = dr_xy[first[k1]] - dr_xy[first[k0]]
+        sigma = config.odometry_sigma_m + config.odometry_drift * (driven_m[first[k1]] - driven_m[first[k0]])
+        if np.linalg.norm(v) > 3 * sigma:
+            out.append((mean[k1] - mean[k0], v))
+    return out
+
+
+def _drives_agree(model: LevelledModel, circle: np.ndarray, heading: np.ndarray, dr_xy: np.ndarray,
+                  driven_m: np.ndarray, config: CircleConfig) -> bool:
+    """Whether the directions between a model's circles (`_drives`) agree with the
+    odometry's within `max_turn_rad` (compass-aided dead reckoning gets a drive's direction
+    to a few degrees, its length only to ~15 %)."""
+    return all(abs(np.angle(complex(*u) / complex(*v))) <= config.max_turn_rad
+               for u, v in _drives(model, circle, heading, dr_xy, driven_m, config))
+
+
+def _floor_agrees(model: LevelledModel, circle: np.ndarray, heading: np.ndarray, dr_xy: np.ndarray,
+                  driven_m: np.ndarray, config: CircleConfig) -> bool:
+    """Whether a model's floor scale is within `floor_trust` of the odometry's (the length
+    of its drives, `_drives`, over theirs in the model); True when no drive tells a length."""
+    steps = _drives(model, circle, heading, dr_xy, driven_m, config)
+    if not steps:
+        return True
+    s_dr = sum(np.linalg.norm(v) for _, v in steps) / max(sum(np.linalg.norm(u) for u, _ in steps), 1e-12)
+    trust = config.floor_trust * (2 if model.floor_points >= config.floor_sure_points else 1)
+    return abs(np.log(model.floor_scale / s_dr)) < trust
+
+
+def place_models(models: list[LevelledModel], circle: np.ndarray, heading: np.ndarray, dr_xy: np.ndarray,
+                 dr_cam_xy: np.ndarray, driven_m: np.ndarray, mount_xy: np.ndarray, mount_yaw: float,
+                 config: CircleConfig = CircleConfig()) -> Placement:
+    """Every model of `models` (largest first) in the floor frame (see the module's
+    docstring). Per photo: `circle` (N,) its circle, `heading` (N,) its camera's compass yaw
+    (rad), `dr_xy` (N, 2) the robot's and `dr_cam_xy` (N, 2) the camera's dead-reckoning
+    position (m), `driven_m` (N,) the distance driven before it; `mount_xy` (2,) the camera's
+    position on the robot (m) and `mount_yaw` its yaw there (rad). A model whose scale
+    nothing fixes (no floor, fewer than two circles shared with models that have one), or
+    that misses its circles by over `max_rms_m`, is left out; when no model has a floor,
+    the largest is kept with the odometry's scale."""
+    floors = {m: model.floor_scale for m, model in enumerate(models)
+              if model.floor_scale and _floor_agrees(model, circle, heading, dr_xy, driven_m, config)}
+    # a model whose circles lie in other directions than the compass-aided odometry drove
+    # is wrong (SfM's mirrored or folded solutions of two circles seen down a corridor)
+    keep = [m for m in range(len(models)) if _drives_agree(models[m], circle, heading, dr_xy, driven_m, config)] or [0]
+    while True:
+        floors = {m: f for m, f in floors.items() if m in keep}
+        # keep only the models whose scale is known (the largest's, from odometry, when none is)
+        kept = [m for m in keep if m in _scaled(models, keep, circle, floors or {keep[0]: None})]
+        prob = _Problem(models, kept, circle, heading, dr_xy, driven_m, mount_xy, mount_yaw, config, floors)
+        x = prob.solve(dr_cam_xy)
+        rms = prob.rms_m(x)
+        bad = [m for m in kept if rms[m] > config.max_rms_m]
+        if not bad or len(kept) == 1:
+            break
+        keep = [m for m in kept if m != max(bad, key=rms.get)]
+    sim, centres = prob.unpack(x)
+    held = {int(k) for m in kept for k in circle[models[m].idx]}
+    return Placement({m: (float(np.exp(v[0])), float(v[1]), v[2:].copy()) for m, v in zip(kept, sim)},
+                     {k: centres[j].copy() for k, j in prob.col.items() if k in held})
+
+
+def rotation_from_bearings(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The rotation R (3x3) that best takes unit bearings `b` (M, 3) onto `a` (M, 3) (a_i ~ R b_i;
+    Kabsch / Procrustes)."""
+    U, _, Vt = np.linalg.svd(a.T @ b)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+    return U @ D @ Vt
+
+
+def pure_rotation(xy_i: np.ndarray, xy_j: np.ndarray, K: np.ndarray, config: CircleConfig = CircleConfig()):
+    """cam_i_from_cam_j rotation (3x3) from matched pixels `xy_i`, `xy_j` (M, 2) of two photos
+    taken from (nearly) one point with intrinsics `K`, refitted once without the matches
+    more than `max_angle_px` off; None with fewer than `min_matches` (left) matches."""
+    if len(xy_i) < config.min_matches:
+        return None
+    Kinv = np.linalg.inv(K)
+    bi, bj = (np.c_[p, np.ones(len(p))] @ Kinv.T for p in (xy_i, xy_j))
+    bi /= np.linalg.norm(bi, axis=1, keepdims=True)
+    bj /= np.linalg.norm(bj, axis=1, keepdims=True)
+    ok = np.ones(len(bi), bool)
+    for _ in range(3):
+        if ok.sum() < config.min_matches:
+            return None
+        R = rotation_from_bearings(bi[ok], bj[ok])
+        ok = np.arccos(np.clip(np.sum(bi * (bj @ R.T), axis=1), -1, 1)) * K[0, 0] < config.max_angle_px
+    return R if ok.sum() >= config.min_matches else None
+
+
+def complete_circles(world_from_cam: dict[int, np.ndarray], circle: np.ndarray, centres: dict[int, np.ndarray],
+                     heading: np.ndarray, matches, K: np.ndarray, mount_xy: np.ndarray, mount_yaw: float,
+                     camera_height_m: float, config: CircleConfig = CircleConfig()) -> dict[int, np.ndarray]:
+    """world_from_cam (4x4) of the photos of the placed circles (`centres` {circle: robot
+    position (2,) m}) that no model posed: turned from a posed photo of the same circle by
+    the rotation of their matched features (`pure_rotation`; `matches(i, j)` gives the
+    (M, 2) pixel pairs of photos i and j), nearest in the circle first, and placed `mount_xy`
+    from the circle's centre at the camera's height. A photo whose rotation matches no posed
+    neighbour, or turns it more than 4 compass sigmas off its compass `heading`, stays out.
+    Photos posed here are themselves neighbours for the rest of their circle."""
+    posed = dict(world_from_cam)
+    added: dict[int, np.ndarray] = {}
+    grew = True
+    while grew:
+        grew = False
+        for i in np.flatnonzero(np.isin(circle, list(centres))):
+            i = int(i)
+            if i in posed:
+                continue
+            same = [j for j in posed if circle[j] == circle[i]]
+            for j in sorted(same, key=lambda j: abs(j - i))[:4]:
+                R = pure_rotation(*matches(i, j), K, config)
+                if R is None:
+                    continue
+                R_wi = posed[j][:3, :3] @ R.T
+                yaw = float(np.arctan2(R_wi[1, 2], R_wi[0, 2]))
+                if abs(_wrap(yaw - heading[i])) > 4 * config.compass_sigma_rad:
+                    continue
+                T = np.eye(4)
+                T[:3, :3] = R_wi
+                T[:2, 3] = centres[int(circle[i])] + _rot(yaw - mount_yaw) @ mount_xy
+                T[2, 3] = camera_height_m
+                posed[i] = added[i] = T
+                grew = True
+                break
+    return added
