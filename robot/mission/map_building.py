@@ -4,17 +4,15 @@ Poisson mesh (Foster, Wang & Grupen, sections IV-A end, IV-B "Choosing a goal", 
 `initial_map` poses the random-exploration photos with pycolmap's incremental SfM (the role
 Bundler plays in the paper), made fast for a robot: one shared, known pinhole camera (not
 refined), few SIFT features per small image, exhaustive matching of the (~100) photos.
-COLMAP's frame is arbitrary, so the model is aligned to the robot's floor frame: the cameras'
-known up (from their SfM rotations and the mount) becomes +z and their mean height the camera
-height; the metric scale comes from the floor, the bottom of the SfM points, which lies the
-camera's (known) height below the cameras (`floor_alignment`; the 2-D similarity onto the
-dead-reckoning positions gives it only when no floor is found: the simulated odometry is 14 %
-off per drive, and a random stage has 2-3 drives, so that scale was 10-17 % off); the compass
-gives the heading and the dead reckoning the position, weighted towards the photos taken
-before the first drive (at the known start). SfM of a random stage breaks into several
-models (one per sector of headings: a circle of photos is a pure rotation, and where a
-circle faces a bare wall nothing is triangulated); `map_from_models` places them together
-by the robot's circles and poses the circles' remaining photos (`robot.mission.circles`).
+COLMAP's frame is arbitrary, so each model is levelled (`levelled_model`: the cameras' known
+up, from their SfM rotations and the mount, becomes +z) and given its metric scale by the
+floor, the bottom of its points, which lies the camera's (known) height below the cameras.
+SfM of a random stage breaks into several models (one per sector of headings: a circle of
+photos is a pure rotation, and where a circle faces a bare wall nothing is triangulated);
+`map_from_models` places them together in the floor frame by the robot's circles (the
+floors, the compass and the dead reckoning from the known start; `robot.mission.circles`)
+and poses the circles' remaining photos. Without any floor the odometry gives the scale
+(the simulated odometry is 14 % off per drive, so that map is 10-17 % off).
 
 `extend_map` adds photos whose poses were localised (PnP) later: their SIFT features are
 matched with their stereo partners (`stereo_tracks`) and triangulated with the poses *fixed*
@@ -249,54 +247,6 @@ def _median_over_background(d: np.ndarray, a: float, b: float, density: float) -
     return float(m[np.argmin(np.abs(left - right))])
 
 
-def floor_alignment(centres: np.ndarray, ups: np.ndarray, target_xy: np.ndarray,
-                    camera_height_m: float, points: np.ndarray | None = None,
-                    forwards: np.ndarray | None = None, headings: np.ndarray | None = None,
-                    driven_m: np.ndarray | None = None) -> tuple[np.ndarray, str]:
-    """(world_from_sfm 4x4 similarity, how the scale was found) taking SfM camera `centres`
-    (N, 3) to the floor frame. Level: the mean of the cameras' `ups` (N, 3; each camera's
-    known world up in the SfM frame) becomes +z, the centres' mean z = `camera_height_m`
-    (`_level`). Scale, from what the robot knows:
-    - "floor": the floor plane in the SfM `points` (M, 3) (`floor_depth`) lies the camera's
-      height below the cameras, so s = camera_height_m / depth (independent of odometry),
-      unless the dead reckoning spreads over half the camera height or more and its scale
-      differs by over 25 % (odometry over a random stage's 2-3 drives was 10-17 % off in
-      the simulator, so a floor further off than that is wrong);
-    - "odometry": no floor found (or no points): the 2-D similarity (Umeyama) onto
-      `target_xy` (N, 2), the dead-reckoning positions over the whole random stage (metres).
-    Heading: with the cameras' SfM viewing directions `forwards` (N, 3) and their world
-    `headings` (N,) (rad, from the compass), the circular mean of the differences of the
-    levelled yaws (good even for one circle of photos, whose centres barely move); else the
-    2-D fit onto `target_xy`. Position: the centroid of `target_xy` (compass-aided dead
-    reckoning from the known start), each photo weighted by 1 / (`driven_m` + 1 cm) when the
-    distance (m) driven before it is given: dead reckoning drifts as the robot drives (its
-    mean was 0.18 m off over an office's random stage), while the photos taken before the
-    first drive stand at the known start (1 cm: SfM's own noise, so those dominate)."""
-    c0, level = _level(centres, ups)
-    p = (centres - c0) @ level.T
-    floor = None
-    if points is not None and len(points):
-        floor = floor_depth(((np.asarray(points, float) - c0) @ level.T)[:, 2])
-    s, R, t = umeyama_2d(p[:, :2], target_xy)
-    how = "odometry"
-    if floor is not None:
-        s_floor = camera_height_m / floor[0]
-        spread = np.sqrt(np.mean(np.sum((target_xy - target_xy.mean(0)) ** 2, axis=1)))
-        # a floor at odds with a well-spread odometry (over half the camera height) is wrong
-        if spread < camera_height_m / 2 or abs(np.log(s_floor / s)) < np.log(1.25):
-            s, how = s_floor, "floor"
-    if forwards is not None and headings is not None:
-        f = np.asarray(forwards, float) @ level.T
-        a = np.angle(np.mean(np.exp(1j * (np.asarray(headings, float) - np.arctan2(f[:, 1], f[:, 0])))))
-        R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
-    w = np.ones(len(p)) if driven_m is None else 1.0 / (np.asarray(driven_m, float) + 0.01)
-    t = (w @ (target_xy - s * p[:, :2] @ R.T)) / w.sum()
-    S = np.eye(4)
-    S[:2, :2], S[:2, 3], S[2, 2], S[2, 3] = s * R, t, s, camera_height_m
-    L = rigid(level, -level @ c0)
-    return S @ L, how
-
-
 def _transform_camera(cam: Camera, world_from_sfm: np.ndarray) -> Camera:
     """The camera re-expressed in the floor frame (a similarity: the scale goes into t)."""
     s = np.cbrt(np.linalg.det(world_from_sfm[:3, :3]))
@@ -339,7 +289,7 @@ def map_from_models(recs: list, database: Path, K: np.ndarray, size_hw: tuple[in
                              rig.cam_xy, rig.driven_m, rig.mount_xy, rig.mount_yaw, config.circles)
     cameras, parts = {}, []
     for k, (s, a, t) in placement.models.items():
-        model, rec, world_from_sfm = models[k][0], models[k][1], _world_from_sfm(models[k][2], s, a, t, rig.height)
+        model, rec, world_from_sfm = models[k][0], models[k][1], world_from_levelled(models[k][2], s, a, t, rig.height)
         cams = {int(i): Camera(K, w, h, _transform_camera(models[k][3][int(i)], world_from_sfm).cam_from_world,
                                f"photo_{int(i):05d}") for i in model.idx}
         parts.append(_sfm_points(rec, world_from_sfm, cams))
@@ -377,27 +327,39 @@ class _Rig:
 
 def _levelled(rec, rig: _Rig):
     """(LevelledModel, rec, (c0, level), {index: Camera in the SfM frame}) of one SfM model
-    (`_level`; its floor's scale from `floor_depth` and the camera height); None with fewer
-    than 3 photos."""
+    (`levelled_model`); None with fewer than 3 photos."""
     cams = {int(Path(im.name).stem): Camera.from_pycolmap(im, rec.cameras[im.camera_id])
             for im in rec.images.values() if im.has_pose}
     idx = np.array(sorted(cams), int)
     if len(idx) < 3:
         return None
-    centres = np.array([cams[i].center for i in idx])
     up_in_cam = rig.cam_from_robot[:3, :3] @ np.array([0.0, 0.0, 1.0])  # the floor's normal, seen by the camera
-    ups = np.array([cams[i].world_from_cam[:3, :3] @ up_in_cam for i in idx])
+    points = np.array([q.xyz for q in rec.points3D.values()]).reshape(-1, 3)
+    model, frame = levelled_model(idx, np.array([cams[i].center for i in idx]),
+                                  np.array([cams[i].world_from_cam[:3, :3] @ up_in_cam for i in idx]),
+                                  np.array([cams[i].world_from_cam[:3, 2] for i in idx]), points, rig.height)
+    return model, rec, frame, cams
+
+
+def levelled_model(idx: np.ndarray, centres: np.ndarray, ups: np.ndarray, forwards: np.ndarray,
+                   points: np.ndarray, camera_height_m: float) -> tuple[LevelledModel, tuple[np.ndarray, np.ndarray]]:
+    """One SfM model levelled (`_level`: the mean of the cameras' `ups` (N, 3), each camera's
+    known world up in the SfM frame, becomes +z) with its metric scale from the floor: the
+    floor plane in the model's `points` (M, 3) (`floor_depth`) lies the camera's known
+    height `camera_height_m` below the cameras, so metres per model unit =
+    camera_height_m / depth (None where no floor is found). `idx` (N,) the photos, `centres`
+    (N, 3) and `forwards` (N, 3) their camera centres and optical axes in the SfM frame.
+    Returns the model and its frame (c0, level) for `world_from_levelled`."""
     c0, level = _level(centres, ups)
     p = (centres - c0) @ level.T
-    f = np.array([cams[i].world_from_cam[:3, 2] for i in idx]) @ level.T
-    points = np.array([q.xyz for q in rec.points3D.values()]).reshape(-1, 3)
-    floor = floor_depth(((points - c0) @ level.T)[:, 2]) if len(points) else None
-    model = LevelledModel(idx, p[:, :2], np.arctan2(f[:, 1], f[:, 0]), None if floor is None else rig.height / floor[0],
-                          0 if floor is None else floor[1])
-    return model, rec, (c0, level), cams
+    f = np.asarray(forwards, float) @ level.T
+    floor = floor_depth(((np.asarray(points, float) - c0) @ level.T)[:, 2]) if len(points) else None
+    model = LevelledModel(np.asarray(idx), p[:, :2], np.arctan2(f[:, 1], f[:, 0]),
+                          None if floor is None else camera_height_m / floor[0], 0 if floor is None else floor[1])
+    return model, (c0, level)
 
 
-def _world_from_sfm(frame: tuple[np.ndarray, np.ndarray], s: float, a: float, t: np.ndarray,
+def world_from_levelled(frame: tuple[np.ndarray, np.ndarray], s: float, a: float, t: np.ndarray,
                     height: float) -> np.ndarray:
     """The 4x4 similarity of a levelled model (`frame` = (c0, level)) placed with scale `s`,
     heading `a` (rad) and shift `t` (2,) m, its cameras' mean at the camera `height`."""

@@ -1,13 +1,15 @@
 """The map's metric scale from what the robot knows (Foster et al. IV-A end): a synthetic
 SfM model (the true scene in an arbitrary similarity frame) is brought back to metres by the
-floor plane and the camera's height, within 1 %, even when the odometry is biased."""
+floor plane and the camera's height, within 1 %, and placed in the floor frame by the
+compass and the dead reckoning, even when the odometry is biased."""
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ibr.synthetic import make_world
 from robot.mission.coverage import surface_samples
-from robot.mission.map_building import floor_alignment, floor_depth
+from robot.mission.circles import place_models
+from robot.mission.map_building import floor_depth, levelled_model, world_from_levelled
 from robot.protocol import robot_camera
 from robot.sim_robot import SimRobot, SimRobotConfig
 
@@ -40,16 +42,14 @@ def synthetic_sfm(world_name: str, sfm_scale: float, seed: int = 0):
 
 def test_scale_from_the_camera_height_is_within_one_percent():
     for name, sfm_scale in (("office", 0.37), ("apartment", 2.9)):
-        centres, ups, points, true_c, height, _, _ = synthetic_sfm(name, sfm_scale)
-        odometry_xy = 1.08 * true_c[:, :2]  # dead reckoning 8 % long (wheel slip, wrong radius)
-        M, how = floor_alignment(centres, ups, odometry_xy, height, points)
-        scale = np.cbrt(np.linalg.det(M[:3, :3]))
-        assert how == "floor" and abs(scale * sfm_scale - 1) < 0.01, (name, scale * sfm_scale)
-        mapped = centres @ M[:3, :3].T + M[:3, 3]
-        assert np.abs(mapped[:, 2] - height).max() < 0.01
-        # without the floor, the odometry's 8 % is the map's (the test can fail)
-        M_odo, how_odo = floor_alignment(centres, ups, odometry_xy, height)
-        assert how_odo == "odometry" and abs(np.cbrt(np.linalg.det(M_odo[:3, :3])) * sfm_scale - 1.08) < 0.01
+        centres, ups, points, true_c, height, fwd, _ = synthetic_sfm(name, sfm_scale)
+        idx = np.arange(len(centres))
+        model, frame = levelled_model(idx, centres, ups, fwd, points, height)
+        assert abs(model.floor_scale * sfm_scale - 1) < 0.01, (name, model.floor_scale * sfm_scale)
+        M = world_from_levelled(frame, model.floor_scale, 0.0, np.zeros(2), height)
+        assert np.abs(centres @ M[:3, :3].T + M[:3, 3] - [0, 0, height])[:, 2].max() < 0.01
+        # without points there is no floor, and no scale from it (the test can fail)
+        assert levelled_model(idx, centres, ups, fwd, np.zeros((0, 3)), height)[0].floor_scale is None
 
 
 def test_floor_depth_is_the_bottom_layer_below_the_cameras():
@@ -62,28 +62,15 @@ def test_floor_depth_is_the_bottom_layer_below_the_cameras():
     assert floor_depth(rng.uniform(0, 1, 100)) is None  # nothing below the cameras
 
 
-def test_one_circle_is_placed_by_the_floor_and_the_compass():
-    """One circle of photos (its centres move a few cm): the floor gives the scale, the
-    compass (2 degrees of noise) the heading, the dead reckoning (5 cm off) the position."""
-    centres, ups, points, true_c, height, fwd, yaw = synthetic_sfm("office", 0.5, seed=3)
-    one = slice(0, 12)
-    rng = np.random.default_rng(0)
-    compass = yaw[one] + np.radians(rng.normal(0, 2, 12))
-    M, how = floor_alignment(centres[one], ups[one], true_c[one, :2] + [0.05, 0.0], height, points, fwd[one], compass)
-    mapped = centres[one] @ M[:3, :3].T + M[:3, 3]
-    assert how == "floor" and np.linalg.norm(mapped - true_c[one], axis=1).max() < 0.08
-    f = fwd[one] @ M[:3, :3].T
-    yaw_err = np.degrees(np.abs(np.angle(np.exp(1j * (np.arctan2(f[:, 1], f[:, 0]) - yaw[one])))))
-    assert yaw_err.max() < 1.5 and abs(np.cbrt(np.linalg.det(M[:3, :3])) * 0.5 - 1) < 0.01
-
-
 def robot_like_sfm(sfm_scale: float, seed: int):
     """An SfM model as the robot's random stage makes it: three circles of photos whose
     centres turn about the axle only by the mount offset (5 cm), 1 cm of noise on the
     centres, the camera's up known from its rotation; a floor that holds only as many
     points per cm of depth as twice the walls; and 1 % of the points triangulated wrongly
-    deep below the floor. Returns what `floor_alignment` takes, the true centres and the
-    dead reckoning (drifting 8 % per metre driven) with the distance driven at each photo."""
+    deep below the floor. Returns the SfM centres, ups, points and optical axes, the true
+    yaws and centres, the camera height, the robot's circle of each photo, the robot's and
+    the camera's dead reckoning (drifting 8 % per metre driven), the distance driven before
+    each photo and the camera's mount (xy m, yaw rad) on the robot."""
     rng = np.random.default_rng(seed)
     robot = SimRobot(make_world("office", 0), SimRobotConfig(image_size=(160, 120)), rng, start_pose=(0.0, -1.0, 0.0))
     height = float(np.linalg.inv(robot.cam_from_robot)[2, 3])
@@ -103,19 +90,26 @@ def robot_like_sfm(sfm_scale: float, seed: int):
     fwd = np.array([c.world_from_cam[:3, 2] for c in cams])
     driven = np.repeat([0.0, 1.84, 3.7], 36)
     drift = 0.08 * driven[:, None] * np.array([1.0, -0.5])
+    circle = np.repeat([0, 1, 2], 36)
+    robot_from_cam = np.linalg.inv(robot.cam_from_robot)
+    mount = robot_from_cam[:2, 3], float(np.arctan2(robot_from_cam[1, 2], robot_from_cam[0, 2]))
     return (to_sfm(C + rng.normal(0, 0.01, C.shape)), ups, to_sfm(P), fwd @ R.T, np.arctan2(fwd[:, 1], fwd[:, 0]),
-            C, height, C[:, :2] + drift, driven)
+            C, height, circle, stops[circle] + drift, C[:, :2] + drift, driven, mount)
 
 
 def test_a_robots_random_stage_is_put_in_metres_by_the_floor():
     """Levelled by the cameras' known up (the plane of 5 cm circles tilts by degrees), the
     floor found as the map's bottom (not lost behind outliers below it, nor beside walls
-    as dense as itself): scale within 1 %; placed by the photos before the first drive
-    (the dead reckoning drifts): the cameras within 2 cm of the truth."""
+    as dense as itself): scale within 1 %; placed by the compass (2 degrees of noise) and
+    the dead reckoning from the known start (it drifts): the cameras within 2 cm of the truth."""
     for seed, sfm_scale in ((0, 0.37), (1, 2.9)):
-        centres, ups, points, fwd, yaw, true_c, height, odometry_xy, driven = robot_like_sfm(sfm_scale, seed)
-        M, how = floor_alignment(centres, ups, odometry_xy, height, points, fwd, yaw, driven)
-        scale = np.cbrt(np.linalg.det(M[:3, :3])) * sfm_scale
+        centres, ups, points, fwd, yaw, true_c, height, circle, dr_xy, dr_cam, driven, mount = \
+            robot_like_sfm(sfm_scale, seed)
+        model, frame = levelled_model(np.arange(len(centres)), centres, ups, fwd, points, height)
+        heading = yaw + np.radians(np.random.default_rng(seed).normal(0, 2, len(yaw)))
+        placed = place_models([model], circle, heading, dr_xy, dr_cam, driven, *mount)
+        s, a, t = placed.models[0]
+        M = world_from_levelled(frame, s, a, t, height)
         mapped = centres @ M[:3, :3].T + M[:3, 3]
-        assert how == "floor" and abs(scale - 1) < 0.01, (seed, how, scale)
+        assert abs(s * sfm_scale - 1) < 0.01, (seed, s * sfm_scale)
         assert np.median(np.linalg.norm(mapped - true_c, axis=1)) < 0.02, (seed, np.linalg.norm(mapped - true_c, axis=1))
