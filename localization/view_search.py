@@ -32,7 +32,6 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 import shapely
-from scipy.spatial import cKDTree
 
 from localization.level_view_likelihood import LevelViewLikelihood
 from localization.motion_models import se2_backward
@@ -131,11 +130,12 @@ class PanoramaIndex:
         self.free = free
         self.positions = grid_positions(free, spacing_m)
         self.panoramas = self._render(lik, n_views)
-        self._tree = cKDTree(self.positions)
-        C = self.cyl.n_cols
-        self._cell_poses = self.robot_poses(np.repeat(self.positions, C, axis=0),
-                                            -np.tile(np.arange(C), len(self.positions)) * self.cyl.step)
-        """(P n_cols, 3) the robot pose of every cell's centre, cells in `scores`' order."""
+        # the grid's squares: a position lies in its own square (its centre, or its free part's)
+        self._origin = np.array(free.bounds[:2])
+        ij = np.floor((self.positions - self._origin) / spacing_m).astype(np.int64)
+        self._square = np.full(ij.max(axis=0) + 1, -1, np.int64)
+        """Position index of each grid square (ix, iy); -1: no panorama there."""
+        self._square[ij[:, 0], ij[:, 1]] = np.arange(len(self.positions))
         self._scored: list[tuple[np.ndarray, np.ndarray]] = []
         self._ranked: list[tuple[np.ndarray, int, np.ndarray]] = []
         """The last two rankings: (photo, track length, flat scores)."""
@@ -225,17 +225,25 @@ class PanoramaIndex:
         self._scored = (self._scored + [(image, v)])[-self.track_photos:]
         return v
 
+    def square_of(self, xy: np.ndarray) -> np.ndarray:
+        """Position index (...) of the grid square holding each point `xy` (..., 2), -1 where
+        that square has no panorama or lies off the grid."""
+        ij = np.floor((xy - self._origin) / self.spacing_m).astype(np.int64)
+        nx, ny = self._square.shape
+        ok = (ij[..., 0] >= 0) & (ij[..., 0] < nx) & (ij[..., 1] >= 0) & (ij[..., 1] < ny)
+        return np.where(ok, self._square[np.clip(ij[..., 0], 0, nx - 1), np.clip(ij[..., 1], 0, ny - 1)], -1)
+
+    def camera_xy(self, poses: np.ndarray) -> np.ndarray:
+        """(N, 2) camera centres of robot poses (N, 3)."""
+        c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+        ox, oy = self.offset
+        return np.c_[poses[:, 0] + c * ox - s * oy, poses[:, 1] + s * ox + c * oy]
+
     def cells(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The (position index, column) cells (N,), (N,) of robot poses (N, 3): the grid
-        position nearest the camera centre (-1 where none is within a spacing: off the
-        grid) and the column nearest the camera's yaw."""
-        th = poses[:, 2]
-        c, s = np.cos(th), np.sin(th)
-        ox, oy = self.offset
-        cam = np.c_[poses[:, 0] + c * ox - s * oy, poses[:, 1] + s * ox + c * oy]
-        d, p = self._tree.query(cam)
-        col = np.round(-(th + self.yaw) / self.cyl.step).astype(np.int64) % self.cyl.n_cols
-        return np.where(d <= self.spacing_m, p, -1), col
+        square of the camera centre (-1: none) and the column nearest the camera's yaw."""
+        col = np.round(-(poses[:, 2] + self.yaw) / self.cyl.step).astype(np.int64) % self.cyl.n_cols
+        return self.square_of(self.camera_xy(poses)), col
 
     def track_scores(self, track: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
         """(P, n_cols) the mean NCC of a track's photos along the odometry: a cell now (its
@@ -245,14 +253,21 @@ class PanoramaIndex:
         one now. A place that one photo cannot single out (a repeated facade, a wall seen
         from afar) differs from the truth's in the photos before it: sequence matching, the
         measurement of the last few steps instead of one (in courtyard 2 the truth's cell
-        ranked up to 4,400th on one photo along a row of alike facades)."""
-        odom_now = track[-1][0]
-        total = np.zeros(len(self._cell_poses))
+        ranked up to 4,400th on one photo along a row of alike facades).
+        The motion back is a rigid motion in the robot's frame, so a cell's camera moves by
+        an offset that depends on its column only: one offset and one column shift per
+        column, then a lookup of the squares (no per-cell trigonometry)."""
+        odom_now, C = track[-1][0], self.cyl.n_cols
+        cols = np.arange(C)
+        here = self.robot_poses(np.zeros((C, 2)), -cols * self.cyl.step)  # cameras at the origin, column c
+        total = np.zeros((len(self.positions), C))
         for odom, image in track:
             v = self.photo_scores(image)
-            p, c = self.cells(se2_backward(self._cell_poses, odom, odom_now))
-            total += np.where(p >= 0, v[np.maximum(p, 0), c], -1.0)
-        return (total / len(track)).reshape(len(self.positions), self.cyl.n_cols)
+            back = se2_backward(here, odom, odom_now)
+            p = self.square_of(self.positions[:, None, :] + self.camera_xy(back)[None])  # (P, C)
+            c = self.cells(back)[1]  # (C,)
+            total += np.where(p >= 0, v[np.maximum(p, 0), c[None, :]], -1.0)
+        return total / len(track)
 
     def best_poses(self, image: np.ndarray, n: int, rng: np.random.Generator,
                    n_cells: int | None = None,
