@@ -20,6 +20,10 @@ cylinder over its field of view. The horizon-free NCC of the photo with every wi
 the panorama (every heading, one panorama column apart) is a circular cross-correlation
 per row (FFT), with sliding sums for the windows' row means and norms. The panoramas depend
 only on the map and the camera, so they are rendered once and reused by every search.
+Every square of the grid that the free space overlaps has a panorama (a robot drives along
+walls and facades), and a track of photos is searched as well as one photo: each cell's
+score is the mean of the photos' scores at the cells the odometry puts it in at their steps
+(`track_scores`), which singles out a place that one photo fits as well as many others.
 
 Frames: world, metres, radians; a panorama column c looks along world yaw -c * step (image
 columns run clockwise, to the camera's right).

@@ -25,8 +25,10 @@ away a hypothesis that may still be right).
 
 Global localisation, the reset's new particles and augmented MCL's injected ones come from
 the photo, not from a uniform prior, when a `PanoramaIndex` is given: the `n_global`
-(position, heading) cells of a grid over the free space that fit the photo best (`localization.view_search`; the measurement's
-own samples, mixture / dual MCL, Thrun et al. 2001). A uniform prior of any affordable size
+(position, heading) cells of a grid over the free space that fit the photo best, half of
+them ranked by the photo alone and half by the track of the last photos along the odometry
+(`localization.view_search`; the measurement's own samples, mixture / dual MCL, Thrun et
+al. 2001). A uniform prior of any affordable size
 misses the likelihood's basin in a large free space (the courtyard: ~60,000 basin cells);
 the photo's best cells hold the truth's. The filter claims convergence only when the
 cloud is unimodal and tight: `converged_mass` of the weight within the success tolerance
@@ -180,7 +182,8 @@ class WorldMCLConfig:
     never made). A count of photos, the same in every world."""
     track_steps: int = 5
     """Photos of the track whose cells the search also ranks (`_searched`): as many as a
-    rival's history, for the same reason."""
+    rival's history, for the same reason (at most `history_steps` + 1: the history holds
+    the earlier ones)."""
 
 
 @dataclass
