@@ -29,6 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
+from localization.motion_models import wrap_angle
+
 
 @dataclass(frozen=True)
 class CircleConfig:
@@ -105,10 +107,6 @@ def _rot(a) -> np.ndarray:
     return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
 
 
-def _wrap(a):
-    return np.angle(np.exp(1j * np.asarray(a)))
-
-
 class _Problem:
     """The least-squares problem of `place_models` over the models `keep`. Unknowns: per model
     (log scale, heading rad, shift x, y m), per circle its robot position (x, y m). Residuals,
@@ -150,7 +148,7 @@ class _Problem:
                 miss = robot[on].mean(0) - centres[self.col[int(k)]]
                 # SfM's noise is in the model's own units: a model shrunk to a point fits no better
                 out.append(miss * np.sqrt(on.sum()) * (self.s0[m] / np.exp(log_s)) / self.cfg.photo_sigma_m)
-            out.append(_wrap(yaw - self.heading[mod.idx]) / self.cfg.compass_sigma_rad)
+            out.append(wrap_angle(yaw - self.heading[mod.idx]) / self.cfg.compass_sigma_rad)
             if m in self.floors:
                 out.append(np.atleast_1d((log_s - np.log(self.floors[m])) / self.cfg.floor_sigma))
         return np.concatenate(out)
@@ -333,7 +331,7 @@ def complete_circles(world_from_cam: dict[int, np.ndarray], circle: np.ndarray, 
                     continue
                 R_wi = posed[j][:3, :3] @ R.T
                 yaw = float(np.arctan2(R_wi[1, 2], R_wi[0, 2]))
-                if abs(_wrap(yaw - heading[i])) > 4 * config.compass_sigma_rad:
+                if abs(wrap_angle(yaw - heading[i])) > 4 * config.compass_sigma_rad:
                     continue
                 T = np.eye(4)
                 T[:3, :3] = R_wi
