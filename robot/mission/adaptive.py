@@ -15,10 +15,9 @@ From the map of the photos so far (`robot.mission.map_building`), each round:
    target-node switching within `switch_m` on the estimate of an SE(2) particle filter
    (`robot.mission.localizer`): odometry and compass between nodes, *vision* at the nodes
    (SIFT + RANSAC PnP against the map, `localization.feature_localizer`, as a mixture
-   proposal; after a failed fix it turns to where the map's points seen from nearby
-   map photos lie, `headings_to_look`, and tries again, up to 3 times; goal photos
-   without a fix stay out of the map's tracks), and an extra photo when the filter's
-   spread grows too large: the plan
+   proposal; after a failed fix it looks the way the nearest map photo looked and tries
+   again; goal photos without a fix stay out of the map's tracks), and an extra photo when
+   the filter's spread grows too large: the plan
    consumes the filter's estimate, never a simulator's truth. On an obstacle it
    marks the contact point blocked on the grid (for this and every later plan), backs off,
    drives a little off the path and re-plans; after `max_obstacles` obstacles it
@@ -105,15 +104,6 @@ class AdaptiveConfig:
     grid_seen_margin_m: float = 0.15
     """A grid cell no photo saw through by this margin (m, `ViewQuality.seen_free`) is
     blocked: paths keep to the space the photos saw empty."""
-    look_around_photos: int = 36
-    """After a failed fix the robot looks where the map points seen from its `look_around_photos`
-    nearest map photos lie (`headings_to_look`): a count, a circle of the paper's random stage
-    (every heading once from one spot at 10 degrees)."""
-    looks_after_failed_fix: int = 3
-    """Most further looks (turn, photo, PnP) after a failed fix. On the demo's apartment, of
-    40 localisation photos whose fix failed, 22 had a heading with a good fix: the 3 headings
-    with the most map points found all 22; the nearest map photo's heading (the rule before)
-    found 1, the single best heading 8."""
     max_fix_jump_m: float = 1.0
     """A PnP fix farther than this from the dead-reckoning estimate is rejected (m)."""
     max_fix_height_err_m: float = 0.15
@@ -130,34 +120,6 @@ class AdaptiveConfig:
     """Map building (SfM, triangulation, Poisson)."""
     filter: MissionFilterConfig = field(default_factory=MissionFilterConfig)
     """The particle filter of path following."""
-
-
-def headings_to_look(points: np.ndarray, seen_from: np.ndarray, map_centres: np.ndarray, pose: np.ndarray,
-                     half_fov_rad: float, n_near: int, n_looks: int, n_headings: int = 36) -> list[float]:
-    """Up to `n_looks` headings (rad) for the camera at robot `pose` (x, y, theta), best first:
-    of `n_headings` even headings, those with the most map `points` (N, 3) within the
-    horizontal field of view (+-`half_fov_rad`), counting only the points seen (`seen_from`
-    (N, 3) camera centres) from within the distance of the `n_near`-th nearest map photo
-    (`map_centres` (M, 3)): a point a nearby photo saw is likely in sight from here, one
-    seen only from the next room is behind a wall. Each heading is more than `half_fov_rad`
-    from the current one (that view just failed) and a field of view from the others
-    picked (they see other points); headings with no point are left out. World frame, metres."""
-    if len(points) == 0 or len(map_centres) == 0:
-        return []
-    d = np.hypot(*(map_centres[:, :2] - pose[:2]).T)
-    radius = np.sort(d)[min(n_near, len(d)) - 1]
-    near = np.hypot(*(seen_from[:, :2] - pose[:2]).T) <= radius
-    bearing = np.arctan2(points[near, 1] - pose[1], points[near, 0] - pose[0])
-    heads = pose[2] + 2 * np.pi * np.arange(n_headings) / n_headings
-    counts = np.array([(np.abs(wrap_angle(bearing - h)) < half_fov_rad).sum() for h in heads])
-    picked: list[float] = []
-    for k in np.argsort(-counts, kind="stable"):
-        if counts[k] == 0 or len(picked) == n_looks:
-            break
-        if (abs(wrap_angle(heads[k] - pose[2])) > half_fov_rad
-                and all(abs(wrap_angle(heads[k] - q)) >= 2 * half_fov_rad for q in picked)):
-            picked.append(float(wrap_angle(heads[k])))
-    return picked
 
 
 def pick_goals(poses: np.ndarray, scores: np.ndarray, k: int, separation_m: float) -> np.ndarray:
@@ -254,24 +216,26 @@ class AdaptiveMission:
         failed = self.failed
         self.take_photo("localise")
         if self.failed > failed and isinstance(self.body, FilteredBody):
-            for heading in self._look_headings():
-                failed = self.failed
+            heading = self._mapped_view_heading()
+            if heading is not None:
                 self._face(heading)
                 self.take_photo("localise")
-                if self.failed == failed:
-                    break
 
-    def _look_headings(self) -> list[float]:
-        """After a failed fix: where to look next (`headings_to_look` from the filter's
-        estimate over the map's points, `looks_after_failed_fix` of them). A path's node
-        often faces a bare wall close by: 44 % of the office's localisation photos found no
-        pose, and in the demo's apartment the views that failed held a median of 83 SIFT
-        features and 180 map points in view, against 235 and 1,072 where PnP succeeded."""
-        c = self.config
-        cams = np.array([cam.center for cam in self._map_cameras().values()]).reshape(-1, 3)
-        half = float(np.arctan2(self.template.width / 2, self.template.K[0, 0]))
-        return headings_to_look(self.tracks.points, self.tracks.seen_from, cams, self.body.est.pose, half,
-                                c.look_around_photos, c.looks_after_failed_fix)
+    def _mapped_view_heading(self) -> float | None:
+        """After a failed fix: the heading (rad) of the nearest map photo (posed by SfM or a
+        fix) that looked more than half the field of view away from the robot's heading,
+        the way to look for features the map holds (a path's node often faces a bare wall
+        close by: 44 % of the office's localisation photos found no pose). None: no such photo."""
+        est = self.body.est.pose
+        half = np.arctan2(self.template.width / 2, self.template.K[0, 0])
+        best, best_d = None, np.inf
+        for cam in self._map_cameras().values():
+            f = cam.world_from_cam[:3, 2]
+            yaw = float(np.arctan2(f[1], f[0]))
+            d = float(np.hypot(*(cam.center[:2] - est[:2])))
+            if abs(wrap_angle(yaw - est[2])) > half and d < best_d:
+                best, best_d = yaw, d
+        return best
 
     def _spread(self) -> float:
         return self.body.est.spread_m if isinstance(self.body, FilteredBody) else 0.0

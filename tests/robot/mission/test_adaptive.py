@@ -10,7 +10,7 @@ import shapely
 from explore.candidates import sample_candidates
 from explore.path_simplify import plan_path
 from ibr.synthetic import make_world
-from robot.mission.adaptive import AdaptiveConfig, AdaptiveMission, headings_to_look, pick_goals, start_filter
+from robot.mission.adaptive import AdaptiveConfig, AdaptiveMission, pick_goals, start_filter
 from robot.mission.coverage import surface_samples
 from robot.mission.map_building import RobotMap
 from robot.mission.observer import MissionObserver, MissionPhoto
@@ -59,27 +59,6 @@ def mission(seed=0) -> tuple[AdaptiveMission, SimRobot, Recorder]:
 @pytest.fixture(scope="module")
 def office():
     return mission()
-
-
-def test_after_a_failed_fix_it_looks_where_nearby_photos_saw_map_points():
-    """Robot at the origin facing north (a bare wall). Nearby photos saw 50 points to the east
-    and 20 to the south-west; 500 points to the west were seen only from the next room (behind
-    a wall): the looks go east, then south-west, never north or west."""
-    rng = np.random.default_rng(0)
-    east = np.c_[np.full(50, 3.0), rng.uniform(-0.5, 0.5, 50), np.full(50, 0.5)]
-    sw = np.c_[np.full(20, -2.0), np.full(20, -2.0) + rng.uniform(-0.3, 0.3, 20), np.full(20, 0.5)]
-    west = np.c_[np.full(500, -3.0), rng.uniform(-1, 1, 500), np.full(500, 0.5)]
-    here = np.array([[0.1, 0.0, 0.4], [0.0, 0.1, 0.4]])
-    next_room = np.array([[-6.0, 0.0, 0.4]])
-    points = np.vstack([east, sw, west])
-    seen_from = np.vstack([np.repeat(here[:1], 70, 0), np.repeat(next_room, 500, 0)])
-    centres = np.vstack([here, next_room])
-    half = np.radians(30)
-    looks = headings_to_look(points, seen_from, centres, np.array([0.0, 0.0, np.pi / 2]), half, 2, 3)
-    assert len(looks) == 2  # no third heading sees a point
-    assert abs(looks[0]) < half  # east
-    assert abs(np.angle(np.exp(1j * (looks[1] + 3 * np.pi / 4)))) < half  # south-west
-    assert headings_to_look(points[:0], seen_from[:0], centres, np.zeros(3), half, 2, 3) == []
 
 
 def test_pick_goals_takes_the_best_spread_apart():
