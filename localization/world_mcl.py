@@ -32,7 +32,9 @@ al. 2001). A uniform prior of any affordable size
 misses the likelihood's basin in a large free space (the courtyard: ~60,000 basin cells);
 the photo's best cells hold the truth's. The filter claims convergence only when the
 cloud is unimodal and tight: `converged_mass` of the weight within the success tolerance
-of the estimate.
+of the estimate, no rival place fits the photos as well, for `confirm_steps` steps in a row,
+each with the photo fitting at least as well as the filter's long-run average (w_fast >=
+w_slow: a filter that is injecting particles does not claim).
 """
 
 from __future__ import annotations
