@@ -151,3 +151,21 @@ def test_the_temperature_is_the_best_views_shortfall_within_bounds():
     assert calibrated_temperature(np.array([0.2, 0.5]), 0.01, 0.05) == 0.05  # lost: no flatter than before
     floor = 1 / (12 * 255**2) / 0.01  # 8-bit quantisation's share of a contrast of 0.01
     assert calibrated_temperature(np.array([1.0]), 0.01, 0.05) == pytest.approx(floor)
+
+
+def test_no_claim_while_the_photos_fit_worse_than_the_filters_long_run_average():
+    """A filter that lost its claim (a kidnapping noticed) does not claim again on a place
+    that now fits the photos worse than it used to (augmented MCL's w_fast < w_slow, the
+    filter injecting particles), however tight its cloud; it claims again once they fit
+    as well as before."""
+    still = np.zeros(3)
+    lik = _TwoPlaces([[1, 1]], [0.9])
+    mcl = _filter(lik)
+    assert [mcl.step(still, still, None) for _ in range(20)][-1].converged  # tracking a while
+    mcl.converged, mcl.streak = False, 0  # the claim dropped
+    lik.heights = [0.5]  # the same place now explains the photos worse
+    worse = [mcl.step(still, still, None) for _ in range(3)]
+    assert mcl.pf.w_fast < mcl.pf.w_slow
+    assert not any(s.converged for s in worse)  # the cloud is tight and alone: 2 steps would do
+    lik.heights = [0.9]
+    assert [mcl.step(still, still, None) for _ in range(6)][-1].converged
