@@ -335,8 +335,7 @@ class WorldMCL:
         that no probe beats yet (apartment 1, trial 32: claimed 2.6 m off two steps after
         the kidnapping, while w_fast / w_slow had fallen to 0.57 and particles were being
         injected)."""
-        pf = self.pf
-        return self.converged or pf.w_slow <= 0 or pf.w_fast >= pf.w_slow
+        return self.converged or self.pf.injection_probability() == 0.0
 
     def _rivals(self, image: np.ndarray, est: np.ndarray, t: float, size: tuple[int, int]) -> bool:
         """Whether other poses fit the photo as well as the estimate does:
