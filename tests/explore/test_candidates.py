@@ -67,6 +67,27 @@ def test_empty_slice_falls_back_to_camera_hull(camera_xy):
     assert free.within(shapely.MultiPoint(camera_xy).convex_hull.buffer(0.76))
 
 
+def _square(lo: float, hi: float) -> list:
+    c = [(lo, lo), (hi, lo), (hi, hi), (lo, hi)]
+    return [[c[k], c[(k + 1) % 4]] for k in range(4)]
+
+
+def test_a_reading_that_puts_most_cameras_in_walls_falls_back_to_their_hull():
+    """A room 6 m square; one camera in a 0.2 m closed pocket, four on short blobs of a
+    rough mesh crossing the camera plane. Sealing (and closing) would keep only the pocket,
+    0.01 m2 around one camera of five: neither reading holds most cameras, so the free
+    space is the cameras' grown hull, which holds them all."""
+    cams = np.array([[1.0, 1.0], [3.0, 3.0], [4.0, 3.0], [3.0, 4.0], [4.0, 4.0]])
+    blobs = [[(x - 0.1, y), (x + 0.1, y)] for x, y in cams[1:]]
+    segs = np.array(_square(0.0, 6.0) + _square(0.9, 1.1) + blobs)
+    free, how = free_space_from_slice(segs, cams)
+    assert how == "hull" and free.area > 5.0
+    assert shapely.contains_xy(free, cams[:, 0], cams[:, 1]).all()
+    # with the blobs gone, the room is sealed as before and holds the four cameras
+    free, how = free_space_from_slice(np.array(_square(0.0, 6.0) + _square(0.9, 1.1)), cams)
+    assert how.startswith("sealed") and shapely.contains_xy(free, cams[1:, 0], cams[1:, 1]).all()
+
+
 def test_candidates_inside_eroded_free_space(office, camera_xy):
     free = free_space_from_mesh(office.mesh, 1.2, camera_xy)
     poses = sample_candidates(free, 300, np.random.default_rng(5), clearance_m=0.3)
