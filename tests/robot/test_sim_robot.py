@@ -76,6 +76,14 @@ def test_capture_keeps_truth_apart(office, gl_ctx):
     np.testing.assert_allclose(robot.truth[0]["pose"], [-1.0, -2.5, 0.0], atol=0.02)
 
 
+@pytest.mark.parametrize("move", ["drive", "turn"])
+def test_a_non_finite_command_is_rejected_and_the_pose_kept(office, move):
+    robot = SimRobot(office, start_pose=START)
+    with pytest.raises(InputError, match=f"{move} .* must be a finite number"):
+        getattr(robot, move)(float("nan"))
+    assert np.allclose(robot.true_pose, START)
+
+
 def test_start_outside_free_space_is_rejected(office):
     with pytest.raises(InputError, match="not in the free space"):
         SimRobot(office, start_pose=(0.0, 0.0, 0.0))  # on the table
