@@ -24,7 +24,8 @@ from ibr.errors import InputError
 class FreeSpaceConfig:
     seal_buffers_m: tuple[float, ...] = (0.05, 0.1, 0.2, 0.35)
     """Half-widths (metres) tried in turn for thickening the slice's segments into walls:
-    a gap narrower than twice the buffer is sealed. The first that encloses the cameras wins."""
+    a gap narrower than twice the buffer is sealed. The first that encloses most of the
+    cameras wins."""
     hull_margin_m: float = 0.75
     """The cameras' convex hull grown by this much (metres) is always free space: the whole
     fallback when the slice is empty, part of the "closed" one (the robot stood there)."""
