@@ -28,7 +28,8 @@ class FreeSpaceConfig:
     cameras wins."""
     hull_margin_m: float = 0.75
     """The cameras' convex hull grown by this much (metres) is always free space: the whole
-    fallback when the slice is empty, part of the "closed" one (the robot stood there)."""
+    fallback when the slice is empty or no reading of it holds most of the cameras, part of
+    the "closed" one (the robot stood there)."""
 
 
 def slice_segments(mesh: trimesh.Trimesh, plane_z: float) -> np.ndarray:
