@@ -13,6 +13,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from ibr.errors import InputError
 from localization.pose_views import forward_camera_mount, robot_camera, se2_matrix  # noqa: F401  (re-exported: the
 # geometry of a robot pose and its camera mount lives below the robot package, for the filters)
 
@@ -66,3 +67,12 @@ class Robot(Protocol):
     def bumpers(self) -> tuple[bool, bool]: ...
     def capture(self) -> Photo: ...
     def stop(self) -> None: ...
+
+
+def check_motion(name: str, value: float) -> None:
+    """Every `Robot`'s drive and turn take a finite number: a NaN turn would leave a
+    simulated robot at a NaN pose without a word, and fail deep inside a real one's
+    encoder arithmetic (or a NaN drive inside either) with a bare ValueError. One
+    `InputError` naming the command instead, before anything moves."""
+    if not np.isfinite(value):
+        raise InputError(f"{name} must be a finite number, got {value}")

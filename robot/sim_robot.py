@@ -22,7 +22,7 @@ from ibr.camera import intrinsics_from_fov
 from ibr.errors import InputError
 from ibr.synthetic import SyntheticWorld
 from localization.motion_models import apply_odometry, sample_odometry_noise, wrap_angle
-from robot.protocol import MotionResult, Photo, forward_camera_mount, robot_camera
+from robot.protocol import MotionResult, Photo, check_motion, forward_camera_mount, robot_camera
 
 
 @dataclass(frozen=True)
@@ -91,7 +91,7 @@ class SimRobot:
     # --- motion -------------------------------------------------------------------
     def drive(self, distance_m: float) -> MotionResult:
         """Drive straight `distance_m` (negative: backwards) until done or blocked."""
-        _check_command("drive distance_m", distance_m)
+        check_motion("SimRobot: drive distance_m", distance_m)
         c = self.config
         n = max(1, int(np.ceil(abs(distance_m) / c.step_m)))
         s = np.linspace(0, distance_m, n + 1)[1:]
@@ -112,7 +112,7 @@ class SimRobot:
 
     def turn(self, angle_rad: float) -> MotionResult:
         """Turn in place by `angle_rad` (counter-clockwise positive); a disc always can."""
-        _check_command("turn angle_rad", angle_rad)
+        check_motion("SimRobot: turn angle_rad", angle_rad)
         self.true_pose = np.array([*self.true_pose[:2], wrap_angle(self.true_pose[2] + angle_rad)])
         self._contact = (False, False)
         self.time_s += abs(angle_rad) / self.config.turn_rate_rad_s
@@ -199,9 +199,3 @@ class SimRobot:
         self._contact = tuple(state["contact"])
         self._n_photos = int(state["n_photos"])
 
-
-def _check_command(name: str, value: float) -> None:
-    """A motion command must be a finite number: a NaN turn would leave the simulated robot at
-    a NaN pose without a word, a NaN drive would fail deep inside with a bare ValueError."""
-    if not np.isfinite(value):
-        raise InputError(f"SimRobot: {name} must be a finite number, got {value}")

@@ -25,7 +25,7 @@ import serial
 from ibr.camera import intrinsics_from_fov
 from ibr.errors import InputError
 from robot.nxt import protocol as P
-from robot.protocol import MotionResult, Photo, forward_camera_mount
+from robot.protocol import MotionResult, Photo, check_motion, forward_camera_mount
 
 
 try:
@@ -334,6 +334,7 @@ class NXTRobot:
     # --- motion -------------------------------------------------------------------
     def drive(self, distance_m: float) -> MotionResult:
         """Drive straight `distance_m` (negative: backwards); stops on a bumper or stall."""
+        check_motion("NXTRobot: drive distance_m", distance_m)
         deg = int(round(np.degrees(abs(distance_m) / self.config.wheel_radius_m)))
         sign = 1 if distance_m >= 0 else -1
         p = sign * self.config.drive_power
@@ -341,6 +342,7 @@ class NXTRobot:
 
     def turn(self, angle_rad: float) -> MotionResult:
         """Turn in place by `angle_rad` (counter-clockwise positive)."""
+        check_motion("NXTRobot: turn angle_rad", angle_rad)
         c = self.config
         deg = int(round(np.degrees(abs(angle_rad) * c.track_m / 2 / c.wheel_radius_m)))
         p = (1 if angle_rad >= 0 else -1) * c.turn_power

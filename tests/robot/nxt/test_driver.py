@@ -208,6 +208,14 @@ def test_error_status_is_reported_and_i2c_errors_retried(robot, emu):
         robot.compass()
 
 
+@pytest.mark.parametrize("move", ["drive", "turn"])
+def test_a_non_finite_command_is_a_clear_error_and_sends_nothing(robot, emu, move):
+    sent = len(emu.received)
+    with pytest.raises(InputError, match=f"{move} .* must be a finite number"):
+        getattr(robot, move)(float("nan"))
+    assert len(emu.received) == sent
+
+
 def test_missing_port_is_a_clear_error(tmp_path):
     with pytest.raises(RobotConnectionError, match="rfcomm9") as e:
         NXTRobot(str(tmp_path / "rfcomm9"), CONFIG, link_config=LINK)
