@@ -50,7 +50,7 @@ def free_space_from_slice(segments: np.ndarray, inside_xy: np.ndarray,
       space. Buffers from `config.seal_buffers_m` are tried smallest first, so small leaks
       of a rough Poisson mesh are sealed while a genuinely open side is not mistaken for
       closed.
-    - "closed": no buffer encloses the cameras (the mesh is open on a side, e.g. where
+    - "closed": no buffer encloses most of the cameras (the mesh is open on a side, e.g. where
       far or plain walls gave SfM no points): the slice is closed by its convex hull, i.e.
       the free space is the convex hull of the segments and of the cameras' grown hull
       (`config.hull_margin_m`), minus the thinnest walls, the part holding the cameras.
@@ -76,8 +76,8 @@ def free_space_from_slice(segments: np.ndarray, inside_xy: np.ndarray,
         if held is not None and not held.intersects(frame.exterior) and _holds_most(held, inside_xy):
             return held, f"sealed:{b:g}"
     walls = lines.buffer(config.seal_buffers_m[0], cap_style="square")
-    closed = _holding(shapely.union(hull, shapely.MultiPoint(segments.reshape(-1, 2))).convex_hull.difference(walls),
-                      inside_xy)
+    outline = shapely.union(hull, shapely.MultiPoint(segments.reshape(-1, 2))).convex_hull
+    closed = _holding(outline.difference(walls), inside_xy)
     if closed is not None and _holds_most(closed, inside_xy):
         return closed, "closed"
     return hull, "hull"
