@@ -96,6 +96,13 @@ class MeshRenderer:
         self.vbo = self.ctx.buffer(data.tobytes())
         self.ibo = self.ctx.buffer(faces.tobytes())
         self.texture = self._upload_texture(image)
+        self.anisotropy = 8.0
+        """Most taps of the fragment shader's anisotropic texture filter (1: trilinear).
+        The shader filters by hand (`albedo_at` in mesh.glsl), not with GL's anisotropic
+        sampler: on llvmpipe that sampler did not finish one 320x240 photo looking down the
+        apartment's corridor (seed 8, a capture mission's photo 1113) in 10 minutes at
+        anisotropy 2, 4, 8 or 16 (23 ms at 1; Mesa 22.3.6, LLVM 15), and the mission stalled
+        until its watchdog fired. Its cost is a known Mesa complaint (mesa-dist-win issue 86)."""
         self.prog = load_program(self.ctx, "mesh", {"BATCHED": 0})
         self.prog_batched = load_program(self.ctx, "mesh", {"BATCHED": 1})
         self.vao = self.ctx.vertex_array(
@@ -139,7 +146,6 @@ class MeshRenderer:
         tex = self.ctx.texture((w, h), 3, np.ascontiguousarray(image[::-1]).tobytes(), alignment=1)
         tex.build_mipmaps()
         tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
-        tex.anisotropy = 8.0
         return tex
 
     def _fbo(self, width: int, height: int) -> moderngl.Framebuffer:
@@ -162,6 +168,7 @@ class MeshRenderer:
         self.ctx.disable(moderngl.CULL_FACE)
         self.texture.use(0)
         prog["u_texture"] = 0
+        prog["u_max_aniso"] = self.anisotropy
 
     def render(self, camera: Camera, light: Light | None = None) -> GBuffer:
         """G-buffer of the mesh seen by `camera`; lit with Blinn-Phong when `light` is given."""

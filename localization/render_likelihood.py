@@ -93,12 +93,12 @@ def likelihood_renderer(mesh: trimesh.Trimesh, ctx: moderngl.Context | None = No
                         background=(0.0, 0.0, 0.0)) -> MeshRenderer:
     """A lean renderer of a textured map mesh for the likelihood pass: its own
     `MeshRenderer` whose texture is sampled trilinearly from the mipmaps, without the
-    anisotropic filtering the photo renderer uses. On llvmpipe anisotropic sampling of the
-    strongly minified textures of 32x24 / 64x48 views costs 10-40x the whole pass, and
-    its sharpness is lost in views that small anyway. (For meshes with many triangles,
-    decimate first, e.g. `localization.lean_model.lean_mesh`.)"""
+    anisotropic filtering the photo renderer uses (`MeshRenderer.anisotropy`).
+    Anisotropic sampling of the strongly minified textures of 32x24 / 64x48 views costs
+    10-40x the whole pass, and its sharpness is lost in views that small anyway. (For
+    meshes with many triangles, decimate first, e.g. `localization.lean_model.lean_mesh`.)"""
     renderer = MeshRenderer(mesh, ctx, background=background)
-    renderer.texture.anisotropy = 1.0
+    renderer.anisotropy = 1.0
     renderer.texture.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
     return renderer
 

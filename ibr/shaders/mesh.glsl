@@ -63,13 +63,37 @@ uniform bool u_lit;
 uniform vec4 u_light;        // xyz: position (w = 1) or direction towards the light (w = 0)
 uniform vec3 u_light_terms;  // ambient, diffuse, specular strength
 uniform float u_shininess;
+uniform float u_max_aniso;   // most taps of the anisotropic filter (1: trilinear)
 layout(location = 0) out vec4 f_color;
 layout(location = 1) out vec4 f_world;
 layout(location = 2) out vec4 f_normal;
 layout(location = 3) out float f_depth;
 
+// Anisotropic filtering by hand: up to u_max_aniso trilinear taps along the pixel's
+// footprint's major axis, at the mip level of its minor axis (the footprint's shape from
+// the uv derivatives). GL's own anisotropic sampler is not used: on llvmpipe it ran for
+// over 10 minutes on one 320x240 view (Mesa 22.3.6; see MeshRenderer.anisotropy). The
+// loop is bounded by a constant, whatever the derivatives are.
+vec3 albedo_at(vec2 uv) {
+    vec2 size = vec2(textureSize(u_texture, 0));
+    vec2 dx = dFdx(uv) * size, dy = dFdy(uv) * size;  // texels per pixel
+    float lx = length(dx), ly = length(dy);
+    float major = max(lx, ly), minor = min(lx, ly);
+    float n = ceil(major / max(minor, 1e-6));
+    if (u_max_aniso <= 1.0 || !(n > 1.0) || isinf(major)) return texture(u_texture, uv).rgb;
+    n = min(n, u_max_aniso);
+    float lod = log2(max(max(major / n, minor), 1.0));  // never sharper than the minor axis
+    vec2 step = (lx > ly ? dx : dy) / size / n;
+    vec3 sum = vec3(0.0);
+    for (int i = 0; i < 16; ++i) {
+        if (float(i) >= n) break;
+        sum += textureLod(u_texture, uv + step * (float(i) + 0.5 - 0.5 * n), lod).rgb;
+    }
+    return sum / n;
+}
+
 void main() {
-    vec3 albedo = texture(u_texture, v_uv).rgb * v_color.rgb;
+    vec3 albedo = albedo_at(v_uv) * v_color.rgb;
     vec3 n = normalize(v_normal);
     vec3 rgb = albedo;
     if (u_lit) {

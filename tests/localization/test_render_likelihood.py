@@ -71,7 +71,7 @@ def test_lean_renderer_batched_equals_reference_and_tracks_full_renderer(setup, 
     pass equals its per-particle reference, and its NCC stays close to the photo renderer's."""
     office, observed, poses, cams, _ = setup
     lean = likelihood_renderer(office.mesh, gl_ctx, office.background)
-    assert lean.texture.anisotropy == 1.0 and office.renderer(gl_ctx).texture.anisotropy > 1.0
+    assert lean.anisotropy == 1.0 and office.renderer(gl_ctx).anisotropy > 1.0
     lik = BatchedLikelihood(lean, light=office.light)
     lik.set_observation(observed, (64, 48))
     batched = lik.tile_scores(cams)

@@ -68,4 +68,8 @@ def test_dense_points_lie_on_the_surface(gl_ctx, stereo_scene):
     pts, cols, eyes = dense_points(scene, sparse, DenseConfig(scale=1.0, planes=64, stride=4))
     assert len(pts) > 1000 and cols.dtype == np.uint8 and eyes.shape == pts.shape
     _, dist, _ = trimesh.proximity.closest_point(scene.mesh, pts[::5])
-    assert np.median(dist) < 0.02                       # metres, at 3-6 m
+    # metres, at 3-6 m: under a fifth of the plane spacing (64 planes uniform in inverse depth
+    # over 2.3-7.8 m: 5.3 cm apart at the box, 17.5 cm at the wall). 1.4 cm when the photos
+    # were rendered with llvmpipe's own (sharper) anisotropic sampler, 2.6 cm with the
+    # renderer's standard footprint filter (`MeshRenderer.anisotropy`), 2.5 cm trilinear.
+    assert np.median(dist) < 0.03
