@@ -156,8 +156,9 @@ def run_mission(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budge
 def adaptive_rounds(mission: AdaptiveMission, result: MissionResult, photo_budget: int, journal=None) -> None:
     """Adaptive rounds from `result.rounds` on until the mission stops on its own; sets
     `result.stopped_because` ("complete": no reachable candidate gains more than
-    `min_gain_rad`; "budget": the photo budget or `max_rounds` (when set) is spent; "no
-    reachable goal": no candidate is left that the robot can drive to) and `result.stop_reason` (in words).
+    `min_gain_rad` and no frontier goal is left; "budget": the photo budget or `max_rounds`
+    (when set) is spent; "no reachable goal": no candidate is left that the robot can drive
+    to) and `result.stop_reason` (in words).
     Each step runs under the watchdog (`AdaptiveConfig.step_limit_s`)."""
     config = mission.config
     journal = journal or MissionJournal()
@@ -169,15 +170,15 @@ def adaptive_rounds(mission: AdaptiveMission, result: MissionResult, photo_budge
             break
         with watchdog(f"round {r + 1}: choosing goals", config.step_limit_s):
             goals, best, grid = mission.choose_goals()
-        log.info(f"round {r + 1}: best reachable candidate gains {np.degrees(best):.1f} deg, {len(goals)} goals, "
-                 f"{len(result.model_photos)} photos")
-        if len(goals) == 0:
+        log.info(f"round {r + 1}: best reachable candidate gains {np.degrees(best):.1f} deg, {len(goals)} goals "
+                 f"({mission.n_frontier_goals} at frontiers), {len(result.model_photos)} photos")
+        if len(goals) == 0 and mission.n_candidates == 0:
             result.stopped_because, result.stop_reason = "no reachable goal", "no candidate the robot can reach"
             break
-        if best < config.min_gain_rad:
+        if len(goals) == 0:
             result.stopped_because = "complete"
             result.stop_reason = (f"best reachable gain {np.degrees(best):.2f} deg below "
-                                  f"{np.degrees(config.min_gain_rad):.2f} deg")
+                                  f"{np.degrees(config.min_gain_rad):.2f} deg, no frontier left")
             break
         _adaptive_round(mission, result, goals, grid, photo_budget, r)
         result.rounds = r + 1

@@ -71,7 +71,9 @@ def test_pick_goals_takes_the_best_spread_apart():
 def test_goals_lie_in_the_free_space_and_score_best(office):
     m, robot, _ = office
     goals, best, grid = m.choose_goals()
-    assert 1 <= len(goals) <= m.config.goals_per_round
+    c = m.config
+    assert 1 <= len(goals) <= c.goals_per_round + c.frontier_goals_per_round
+    assert 1 <= m.n_frontier_goals <= c.frontier_goals_per_round  # 40 photos heard only part of the office
     assert best > 0
     world_free = robot.world.free_space
     assert shapely.contains_xy(world_free, goals[:, 0], goals[:, 1]).all()
@@ -131,15 +133,19 @@ def test_gives_a_goal_up_after_k_obstacles(office, monkeypatch):
         m.bumps = []
 
 
-def fenced(m: AdaptiveMission, radius_m: float) -> AdaptiveMission:
+def fenced(m: AdaptiveMission, radius_m: float, deaf: bool = True) -> AdaptiveMission:
     """The mission with a ring of dense map points (a fence 0.2-1.0 m high) around the robot's
-    estimate: the navigation grid blocks it, so nothing outside is reachable."""
+    estimate: the navigation grid blocks it, so nothing outside is reachable. The photos'
+    ultrasonic readings are dropped when `deaf` (a range of 0 is no reading): the real
+    office's readings find the space beyond the fence free, and the grid trusts them over
+    map points."""
     a = np.linspace(0, 2 * np.pi, 400, endpoint=False)
     z = np.linspace(0.2, 1.0, 5)
     ring = np.array([[*(m.body.est.pose[:2] + radius_m * np.array([np.cos(t), np.sin(t)])), h] for t in a for h in z])
     pts = np.r_[m.map.points, ring]
     rmap = replace(m.map, points=pts, colors=np.zeros((len(pts), 3), np.uint8), normals=np.zeros((len(pts), 3)))
-    return AdaptiveMission(m.robot, m.body, list(m.photos), rmap, m.config, np.random.default_rng(4), MissionObserver())
+    photos = [replace(p, photo=replace(p.photo, range_m=0.0)) for p in m.photos] if deaf else list(m.photos)
+    return AdaptiveMission(m.robot, m.body, photos, rmap, m.config, np.random.default_rng(4), MissionObserver())
 
 
 def test_a_goal_behind_a_wall_is_not_drawn(office):
@@ -177,3 +183,31 @@ def test_a_mission_that_can_reach_no_goal_stops(office):
     adaptive_rounds(trapped, result, photo_budget=n + 50)
     assert result.stopped_because == "no reachable goal" and result.rounds == 0
     assert len(trapped.photos) == n and trapped.given_up == 0
+
+
+def test_the_ultrasonic_outranks_stray_map_points(office):
+    """Map points the ultrasonic's readings contradict (the fence of `fenced`, where the real
+    office is empty) make the grid dear, not blocked: the robot is not trapped by them."""
+    m, _, _ = office
+    heard = fenced(m, 0.4, deaf=False)
+    goals, _, grid = heard.choose_goals()
+    far = goals[np.hypot(*(goals[:, :2] - m.body.est.pose[:2]).T) > 0.6]
+    assert len(far) and plan_path(heard._from_here(grid), m.body.est.pose[:2], far[0, :2],
+                                  max_cost=m.config.max_path_cost) is not None
+
+
+def test_an_unlocalised_robot_is_sent_to_no_frontier(office):
+    """Frontier goals lead where the map has no points to fix the pose by; the robot takes
+    them only while its filter's spread is within `relocalise_std_m`."""
+    m, _, _ = office
+    _, _, grid = m.choose_goals()
+    assert len(m.frontier_goals(grid)) >= 1
+    est = m.body.est
+    particles, log_w = est.pf.particles.copy(), est.pf.log_w.copy()
+    try:
+        spread = particles + np.c_[np.random.default_rng(0).normal(0, 0.6, (len(particles), 2)), np.zeros(len(particles))]
+        est.set_particles(spread, np.zeros(len(spread)))
+        assert est.spread_m > m.config.filter.relocalise_std_m
+        assert len(m.frontier_goals(grid)) == 0
+    finally:
+        est.set_particles(particles, log_w)

@@ -23,6 +23,7 @@ class OneGoalPerRound:
         self.goals_reached, self.given_up_goals, self.given_up, self.give_up_reason = [], [], 0, ""
         self.body = SimpleNamespace(est=SimpleNamespace(pose=np.zeros(3)))
         self.rebuilds = 0
+        self.n_candidates, self.n_frontier_goals = 1, 0
 
     def choose_goals(self):
         return np.array([[len(self.photos), 0.0, 0.0]]), 1.0, None

@@ -1,0 +1,155 @@
+"""Frontier goals from the robot's ultrasonic (Yamauchi, "A frontier-based approach for
+autonomous exploration", CIRA 1997): an occupancy grid of the range readings, and goals
+where known free space meets space no reading has reached.
+
+Why the capture mission needs it: Foster, Wang & Grupen's stage 2 draws its candidates
+where the photos saw free space in front of the map's mesh (`ViewQuality.seen_free`), so
+exploration ends wherever the mesh does. Through a doorway into a room SfM has no points of
+the mesh has a hole, no candidate is drawn beyond it, and the room is never photographed
+(apartments 0-9, 261 photos: 8 of 10 missions left a room unvisited). The ultrasonic, read
+with every photo, sees a plain wall as well as a textured one, and reads far through a
+doorway; so the readings tell open space from walls where the photos cannot.
+
+Sensor model: a reading r < `SonarConfig.max_range_m` is the nearest surface in the cone
+(`SimRobot.ultrasonic`, the NXT's sensor): the cone is free up to a cell short of r and the
+whole arc at r is occupied (the classic sonar model: which ray hit is unknown); a reading
+at the maximum is free up to the maximum. Each cell holds counts of free and occupied
+hits; it is free when its free hits outnumber its occupied ones, unknown when it has none.
+
+Frames: world metres, SE(2) poses (x, y, theta); grid cells (i, j) = (row along y,
+column along x) as `explore.nav_grid.NavGrid`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+
+@dataclass(frozen=True)
+class SonarConfig:
+    """The ultrasonic's geometry: properties of the sensor, not of a scene."""
+
+    max_range_m: float = 2.55
+    """Largest range the sensor reports (the NXT's 255 cm); a reading within `max_tol_m` of
+    it saw nothing."""
+    max_tol_m: float = 0.05
+    """Readings this close to the maximum (m) count as "nothing in range" (5 noise sigmas)."""
+    half_cone_rad: float = np.radians(10.0)
+    """Half-angle of the sensor's beam (rad)."""
+
+
+@dataclass(frozen=True)
+class SonarGrid:
+    """Occupancy counts on a grid: `origin` (2,) world xy of cell (0, 0)'s corner (m),
+    `cell_m` the cell size (m), `free` and `occupied` (H, W) hit counts."""
+
+    origin: np.ndarray
+    cell_m: float
+    free: np.ndarray
+    occupied: np.ndarray
+
+    @property
+    def free_mask(self) -> np.ndarray:
+        """(H, W) bool: more free hits than occupied ones."""
+        return self.free > self.occupied
+
+    @property
+    def unknown_mask(self) -> np.ndarray:
+        """(H, W) bool: no reading reached the cell."""
+        return (self.free == 0) & (self.occupied == 0)
+
+    def cells(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(i, j) integer cells of world points (N, 2) (may be out of bounds)."""
+        ji = np.floor((np.asarray(xy, float) - self.origin) / self.cell_m).astype(int)
+        return ji[:, 1], ji[:, 0]
+
+    def is_free(self, xy: np.ndarray) -> np.ndarray:
+        """(N,) bool: the cells of world points (N, 2) are free (False outside the grid)."""
+        i, j = self.cells(xy)
+        H, W = self.free.shape
+        ok = (i >= 0) & (i < H) & (j >= 0) & (j < W)
+        out = np.zeros(len(i), bool)
+        out[ok] = self.free_mask[i[ok], j[ok]]
+        return out
+
+    def free_bounds(self) -> np.ndarray | None:
+        """(2, 2) [lo, hi] world xy of the free cells' extent (m); None when none is free."""
+        i, j = np.nonzero(self.free_mask)
+        if len(i) == 0:
+            return None
+        lo = self.origin + np.array([j.min(), i.min()]) * self.cell_m
+        hi = self.origin + np.array([j.max() + 1, i.max() + 1]) * self.cell_m
+        return np.array([lo, hi])
+
+
+def sonar_grid(poses: np.ndarray, ranges: np.ndarray, cell_m: float,
+               config: SonarConfig = SonarConfig()) -> SonarGrid:
+    """The occupancy counts of range readings `ranges` (N,) (m) taken at robot poses (N, 3)
+    (the sensor at the robot's centre, looking along its heading), on cells of `cell_m`
+    metres over the readings' reach and as far again (unknown space all round, so which
+    way the unknown lies is not skewed by the grid's edge). Non-finite poses or ranges
+    are skipped."""
+    poses = np.asarray(poses, float).reshape(-1, 3)
+    ranges = np.asarray(ranges, float).reshape(-1)
+    ok = np.isfinite(poses).all(axis=1) & np.isfinite(ranges) & (ranges > 0)
+    poses, ranges = poses[ok], np.minimum(ranges[ok], config.max_range_m)
+    reach = 2 * config.max_range_m  # the readings' reach, and as much unknown space beyond it
+    lo = (poses[:, :2].min(0) if len(poses) else np.zeros(2)) - reach
+    hi = (poses[:, :2].max(0) if len(poses) else np.zeros(2)) + reach
+    H, W = (np.ceil((hi - lo) / cell_m).astype(int) + 1)[::-1]
+    grid = SonarGrid(lo, cell_m, np.zeros((H, W), np.int32), np.zeros((H, W), np.int32))
+    if len(poses) == 0:
+        return grid
+    # rays half a cell apart at the longest range, so the beam leaves no cell between rays
+    n_rays = int(np.ceil(2 * config.half_cone_rad * config.max_range_m / (cell_m / 2))) + 1
+    offsets = np.linspace(-config.half_cone_rad, config.half_cone_rad, n_rays)
+    for pose, r in zip(poses, ranges):
+        a = pose[2] + offsets
+        dirs = np.c_[np.cos(a), np.sin(a)]
+        hit = r < config.max_range_m - config.max_tol_m
+        # free: every half cell along each ray, short of the surface by a cell
+        t = np.arange(0.0, max(r - (cell_m if hit else 0.0), 0.0), cell_m / 2)
+        _count(grid, grid.free, (pose[:2] + t[:, None, None] * dirs[None]).reshape(-1, 2))
+        if hit:
+            _count(grid, grid.occupied, pose[:2] + r * dirs)
+    return grid
+
+
+def _count(grid: SonarGrid, counts: np.ndarray, xy: np.ndarray) -> None:
+    """Add one hit to each distinct cell of the world points xy (N, 2)."""
+    i, j = grid.cells(xy)
+    H, W = counts.shape
+    ok = (i >= 0) & (i < H) & (j >= 0) & (j < W)
+    flat = np.unique(i[ok] * W + j[ok])
+    counts.reshape(-1)[flat] += 1
+
+
+def frontiers(grid: SonarGrid, min_width_m: float) -> list[np.ndarray]:
+    """Yamauchi's frontiers: free cells 4-adjacent to an unknown cell, grouped into
+    8-connected regions, each as the world xy (K, 2) of its cells' centres (m); a region
+    narrower than `min_width_m` (its cell count times the cell size; the robot's width: it
+    could not pass) is dropped. Largest first."""
+    near_unknown = ndimage.binary_dilation(grid.unknown_mask, structure=ndimage.generate_binary_structure(2, 1))
+    labels, n = ndimage.label(grid.free_mask & near_unknown, structure=np.ones((3, 3), bool))
+    out = []
+    for k in range(1, n + 1):
+        i, j = np.nonzero(labels == k)
+        if len(i) * grid.cell_m >= min_width_m:
+            out.append(grid.origin + (np.c_[j, i] + 0.5) * grid.cell_m)
+    return sorted(out, key=lambda cells: -len(cells))
+
+
+def toward_unknown(grid: SonarGrid, xy: np.ndarray, radius_m: float) -> float | None:
+    """Heading (rad) from the world point xy (2,) to the mean of the unknown cells within
+    `radius_m` of it: the way a photo from there shows what no reading has reached. None
+    when there is no unknown cell that near."""
+    i, j = np.nonzero(grid.unknown_mask)
+    c = grid.origin + (np.c_[j, i] + 0.5) * grid.cell_m
+    near = c[np.linalg.norm(c - xy, axis=1) < radius_m]
+    if len(near) == 0:
+        return None
+    d = near.mean(0) - xy
+    return float(np.arctan2(d[1], d[0]))
