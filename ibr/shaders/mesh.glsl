@@ -81,7 +81,7 @@ vec3 albedo_at(vec2 uv) {
     float major = max(lx, ly), minor = min(lx, ly);
     float n = ceil(major / max(minor, 1e-6));
     if (u_max_aniso <= 1.0 || !(n > 1.0) || isinf(major)) return texture(u_texture, uv).rgb;
-    n = min(n, u_max_aniso);
+    n = min(n, min(u_max_aniso, 16.0));  // the loop's bound
     float lod = log2(max(max(major / n, minor), 1.0));  // never sharper than the minor axis
     vec2 step = (lx > ly ? dx : dy) / size / n;
     vec3 sum = vec3(0.0);
