@@ -1,10 +1,13 @@
-"""Rerun logging for exploration: planned paths (`world/plan/path`) and floor plans."""
+"""Rerun logging for exploration: planned paths (`world/plan/path`), floor plans, candidates,
+the navigation grid and the ultrasonic's occupancy grid (`world/plan/sonar`)."""
 
 from __future__ import annotations
 
 import numpy as np
 import rerun as rr
 import shapely
+
+from explore.frontier import frontiers
 
 
 def log_path(xy: np.ndarray, path: str = "world/plan/path", height_m: float = 0.02,
@@ -61,3 +64,16 @@ def log_nav_grid(grid, path: str = "world/plan/grid", min_cost: float = 0.02,
     xy = grid.cell_to_world(ij)
     rr.log(path, rr.Points3D(np.c_[xy, np.full(len(xy), height_m)], colors=colors,
                              radii=0.5 * grid.cell_m), static=static)
+
+
+def log_sonar_grid(grid, path: str = "world/plan/sonar", height_m: float = 0.003) -> None:
+    """An ultrasonic occupancy grid (`explore.frontier.SonarGrid`) as points at cell centres:
+    free cells pale blue, occupied ones dark grey, frontier cells (free next to unknown,
+    `explore.frontier.frontiers` of any width) orange."""
+    free, occupied = grid.free_mask, (grid.occupied > 0) & ~grid.free_mask
+    ij = np.argwhere(free | occupied)
+    colors = np.where(free[ij[:, 0], ij[:, 1]][:, None], [[170, 200, 235]], [[60, 60, 60]]).astype(np.uint8)
+    xy = grid.origin + (ij[:, ::-1] + 0.5) * grid.cell_m
+    front = np.vstack(frontiers(grid, 0.0) or [np.zeros((0, 2))])
+    xy, colors = np.r_[xy, front], np.r_[colors, np.tile(np.array([[255, 140, 0]], np.uint8), (len(front), 1))]
+    rr.log(path, rr.Points3D(np.c_[xy, np.full(len(xy), height_m)], colors=colors, radii=0.5 * grid.cell_m))

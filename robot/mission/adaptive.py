@@ -324,6 +324,7 @@ class AdaptiveMission:
         self.n_candidates, self.n_frontier_goals = len(cand), len(front)
         goals = np.r_[cand[pick].reshape(-1, 3), front]
         self.obs.map(self.map, free)
+        self.obs.sonar(self._sonar)
         self.obs.candidates(cand, scores, goals)
         return goals, best, grid
 

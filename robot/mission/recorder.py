@@ -121,6 +121,10 @@ class RecordingObserver(MissionObserver):
         if self.log:
             explore_viz.log_nav_grid(grid)
 
+    def sonar(self, grid) -> None:
+        if self.log:
+            explore_viz.log_sonar_grid(grid)
+
     def path(self, xy) -> None:
         if self.session is not None:
             self.session.append("path", waypoints=xy)

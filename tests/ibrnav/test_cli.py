@@ -35,7 +35,8 @@ def test_demo_runs_the_capture_mission_into_a_recording_and_a_session(tmp_path):
     assert "initial map:" in run.stderr and "round 1:" in run.stderr  # progress on stderr
     printed = rrd_entities(rrd)
     for entity in ("/world/robot/camera/image", "/world/robot", "/world/estimate", "/world/map/points",
-                   "/world/map/mesh", "/world/nbv/candidates", "/world/plan/grid", "/world/plan/path",
+                   "/world/map/mesh", "/world/nbv/candidates", "/world/plan/grid", "/world/plan/sonar",
+                   "/world/plan/path",
                    "/world/tour/camera/image", "plots/coverage", "plots/estimate_error_m",
                    "/world/particles", "plots/dead_reckoning_error_m"):
         assert entity in printed, entity
