@@ -66,6 +66,10 @@ class SonarGrid:
         ji = np.floor((np.asarray(xy, float) - self.origin) / self.cell_m).astype(int)
         return ji[:, 1], ji[:, 0]
 
+    def centres(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+        """(K, 2) world xy (m) of the centres of the cells (i, j) (K,) each."""
+        return self.origin + (np.c_[j, i] + 0.5) * self.cell_m
+
     def is_free(self, xy: np.ndarray) -> np.ndarray:
         """(N,) bool: the cells of world points (N, 2) are free (False outside the grid)."""
         i, j = self.cells(xy)
@@ -138,7 +142,7 @@ def frontiers(grid: SonarGrid, min_width_m: float) -> list[np.ndarray]:
     for k in range(1, n + 1):
         i, j = np.nonzero(labels == k)
         if len(i) * grid.cell_m >= min_width_m:
-            out.append(grid.origin + (np.c_[j, i] + 0.5) * grid.cell_m)
+            out.append(grid.centres(i, j))
     return sorted(out, key=lambda cells: -len(cells))
 
 
@@ -146,8 +150,7 @@ def toward_unknown(grid: SonarGrid, xy: np.ndarray, radius_m: float) -> float | 
     """Heading (rad) from the world point xy (2,) to the mean of the unknown cells within
     `radius_m` of it: the way a photo from there shows what no reading has reached. None
     when there is no unknown cell that near."""
-    i, j = np.nonzero(grid.unknown_mask)
-    c = grid.origin + (np.c_[j, i] + 0.5) * grid.cell_m
+    c = grid.centres(*np.nonzero(grid.unknown_mask))
     near = c[np.linalg.norm(c - xy, axis=1) < radius_m]
     if len(near) == 0:
         return None

@@ -73,7 +73,7 @@ def log_sonar_grid(grid, path: str = "world/plan/sonar", height_m: float = 0.003
     free, occupied = grid.free_mask, (grid.occupied > 0) & ~grid.free_mask
     ij = np.argwhere(free | occupied)
     colors = np.where(free[ij[:, 0], ij[:, 1]][:, None], [[170, 200, 235]], [[60, 60, 60]]).astype(np.uint8)
-    xy = grid.origin + (ij[:, ::-1] + 0.5) * grid.cell_m
+    xy = grid.centres(ij[:, 0], ij[:, 1])
     front = np.vstack(frontiers(grid, 0.0) or [np.zeros((0, 2))])
     xy, colors = np.r_[xy, front], np.r_[colors, np.tile(np.array([[255, 140, 0]], np.uint8), (len(front), 1))]
     rr.log(path, rr.Points3D(np.c_[xy, np.full(len(xy), height_m)], colors=colors, radii=0.5 * grid.cell_m))

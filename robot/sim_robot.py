@@ -198,4 +198,3 @@ class SimRobot:
         self.time_s = float(state["time_s"])
         self._contact = tuple(state["contact"])
         self._n_photos = int(state["n_photos"])
-

@@ -373,7 +373,7 @@ class AdaptiveMission:
         """Whether `goal` (3,) lies within `goal_separation_m` of a goal given up, or of one
         reached with a heading within 60 degrees of its own."""
         sep = self.config.goal_separation_m
-        if any(np.hypot(*(goal[:2] - g[:2])) < sep for g in self.given_up_goals):
+        if self._near_given_up(goal[None, :2])[0]:
             return True
         return any(np.hypot(*(goal[:2] - g[:2])) < sep and abs(wrap_angle(goal[2] - g[2])) < np.radians(60)
                    for g in self.goals_reached)
@@ -391,11 +391,14 @@ class AdaptiveMission:
         keep = reachable_at(grid, mask, cand[:, :2])
         log.debug(f"goal choice: {len(cand)} candidates in the free space ({free.area:.1f} m2), "
                   f"{int(keep.sum())} reachable ({int(mask.sum())} grid cells)")
-        if self.given_up_goals:
-            bad = np.array(self.given_up_goals)[:, :2]
-            d = np.linalg.norm(cand[:, None, :2] - bad[None], axis=2)
-            keep &= d.min(axis=1) >= c.goal_separation_m
-        return cand[keep]
+        return cand[keep & ~self._near_given_up(cand[:, :2])]
+
+    def _near_given_up(self, xy: np.ndarray) -> np.ndarray:
+        """(N,) bool: the points xy (N, 2) lie within `goal_separation_m` of a goal given up."""
+        if not self.given_up_goals:
+            return np.zeros(len(xy), bool)
+        bad = np.array(self.given_up_goals)[:, :2]
+        return np.linalg.norm(xy[:, None] - bad[None], axis=2).min(axis=1) < self.config.goal_separation_m
 
     def nav_grid(self, free, strict: bool = True):
         """The KDE grid over the photos' positions, the free space and the ultrasonic's free
