@@ -34,8 +34,11 @@ Algorithm code only: what happens is reported to a `MissionObserver`
 from __future__ import annotations
 
 import logging
-
+import shutil
+import tempfile
+import weakref
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -53,6 +56,7 @@ from robot.mission.localizer import FilteredBody, MissionFilterConfig, MissionLo
 from robot.mission.map_building import MapConfig, RobotMap, Tracks, extend_map, stereo_tracks
 from robot.mission.observer import MissionObserver, MissionPhoto
 from robot.mission.random_stage import Body
+from robot.mission.repose import ReposeConfig, repose_photos
 from robot.protocol import Photo, Robot, robot_camera
 
 log = logging.getLogger(__name__)
@@ -129,6 +133,9 @@ class AdaptiveConfig:
     """Map building (SfM, triangulation, Poisson)."""
     filter: MissionFilterConfig = field(default_factory=MissionFilterConfig)
     """The particle filter of path following."""
+    repose: ReposeConfig | None = field(default_factory=ReposeConfig)
+    """Re-posing every photo by SfM when PnP keeps failing (`robot.mission.repose`), so the
+    map follows the robot into rooms it has no points of; None: never."""
 
 
 def pick_goals(poses: np.ndarray, scores: np.ndarray, k: int, separation_m: float) -> np.ndarray:
@@ -150,7 +157,7 @@ class AdaptiveMission:
 
     def __init__(self, robot: Robot, body: Body, photos: list[MissionPhoto], robot_map: RobotMap,
                  config: AdaptiveConfig, rng: np.random.Generator, observer: MissionObserver,
-                 unfixed: set[int] | None = None):
+                 unfixed: set[int] | None = None, reposed: set[int] | None = None):
         self.robot, self.body, self.photos, self.map = robot, body, photos, robot_map
         self.config, self.rng, self.obs = config, rng, observer
         w, h = robot.image_size
@@ -158,6 +165,12 @@ class AdaptiveMission:
         self.cam_height = float(np.linalg.inv(robot.cam_from_robot)[2, 3])
         self._features: dict[int, object] = {}
         self.fixes = self.failed = self.given_up = 0
+        self.failed_at_repose = 0
+        """`failed` when the photos were last re-posed by SfM (`repose`)."""
+        self._sfm_work: Path | None = None  # `repose`'s SfM workspace
+        self.reposed: set[int] = set(reposed or ())
+        """Localise photos SfM posed (`repose`): not in the model, but in the map's tracks,
+        where the robot was lost they are most of the photos of a room."""
         self.goals_reached: list[np.ndarray] = []
         self.given_up_goals: list[np.ndarray] = []
         """Goals given up: no candidate is drawn near them again."""
@@ -187,8 +200,10 @@ class AdaptiveMission:
         return {i: p.camera for i, p in enumerate(self.photos) if p.camera is not None and p.stage != "localise"}
 
     def _map_cameras(self) -> dict[int, Camera]:
-        """The model's cameras posed by SfM or by a vision fix (what the tracks are made of)."""
-        return {i: c for i, c in self._model_cameras().items() if i not in self.unfixed}
+        """The model's cameras posed by SfM or by a vision fix, and the localise photos SfM
+        re-posed (what the tracks are made of)."""
+        return {**{i: c for i, c in self._model_cameras().items() if i not in self.unfixed},
+                **{i: self.photos[i].camera for i in sorted(self.reposed)}}
 
     def _feature_map(self) -> FeatureMap:
         """SIFT + PnP map of the tracks so far (built once, then grown by `rebuild`)."""
@@ -560,6 +575,53 @@ class AdaptiveMission:
         self.map = extend_map(self.map, {i: cams[i] for i in new_ids}, tracks, self.config.map)
         self.tracks = self.tracks + tracks
         self.fmap = self._feature_map()
+        r = self.config.repose
+        if (r is not None and self.failed - self.failed_at_repose >= r.after_failures
+                and self._spread() > self.config.filter.relocalise_std_m):
+            self.repose()
+
+    def repose(self) -> int:
+        """Re-pose every photo by SfM, placed on the map's own photos (`robot.mission.repose`).
+        Photos the map lacks join it at their SfM pose: model photos unposed or posed only at
+        the filter's estimate, and localise photos no fix posed (tracks only, `reposed`).
+        Their tracks extend the map, so PnP works there from now on. When the robot's last
+        photo, taken where it still stands, is one of them, its pose is the filter's
+        measurement, as a fix would be. Returns how many photos joined the map."""
+        c = self.config
+        self.failed_at_repose = self.failed
+        if self._sfm_work is None:  # features and matches kept between calls; removed with the mission
+            self._sfm_work = Path(tempfile.mkdtemp(prefix="ibrnav_repose_"))
+            weakref.finalize(self, shutil.rmtree, self._sfm_work, True)
+        found = repose_photos([p.photo.image for p in self.photos], self.robot.intrinsics,
+                              np.array([p.photo.compass_rad for p in self.photos]),
+                              np.array([p.stage != "localise" for p in self.photos]), self._map_cameras(), c.map,
+                              self._sfm_work, c.repose)
+        if found is None:
+            log.info("re-posing by SfM: no model that agrees with the map; the map is unchanged")
+            return 0
+        cams, support, err = found
+        upright = {i: cam for i, cam in cams.items() if abs(cam.center[2] - self.cam_height) < c.max_fix_height_err_m}
+        known = self._map_cameras()
+        joined = {i: cam.with_pose(cam.cam_from_world, name=f"photo_{i:05d}") for i, cam in upright.items()
+                  if i not in known and (self.photos[i].stage != "localise" or self.photos[i].camera is None)}
+        for i, cam in joined.items():
+            self.photos[i].camera = cam
+        self.unfixed -= set(joined)
+        self.reposed |= {i for i in joined if self.photos[i].stage == "localise"}
+        new = {i: cam for i, cam in joined.items() if self.photos[i].stage != "localise"}
+        if joined:
+            tracks = stereo_tracks(self._map_cameras(), self._feats, c.localizer.triangulation, only=set(joined))
+            self.map = extend_map(self.map, new, tracks, c.map)
+            self.tracks = self.tracks + tracks
+            self.fmap = self._feature_map()
+        last = len(self.photos) - 1
+        still = self._last_view is not None and np.allclose(self.robot.odometry(), self._last_view)
+        if last in joined and still and isinstance(self.body, FilteredBody):
+            self.body.est.update_pnp(self.pose_of_camera(joined[last].cam_from_world), support[last])
+            log.info("re-posing by SfM: the robot's last photo posed, the filter's measurement")
+        log.info(f"re-posing by SfM: {len(cams)} of {len(self.photos)} photos posed (anchors agree to "
+                 f"{100 * err:.1f} cm), {len(joined)} joined the map ({len(new)} of the model)")
+        return len(joined)
 
 
 def start_filter(robot: Robot, body: Body, photos: list[MissionPhoto], rmap: RobotMap,

@@ -120,7 +120,8 @@ class SessionJournal(MissionJournal):
                  "path_m": mission.body.path_m, "fixes": mission.fixes, "failed": mission.failed,
                  "given_up": mission.given_up, "goals": mission.goals_reached,
                  "given_up_goals": mission.given_up_goals, "bumps": mission.bumps,
-                 "unfixed": sorted(mission.unfixed),
+                 "unfixed": sorted(mission.unfixed), "failed_at_repose": mission.failed_at_repose,
+                 "reposed": sorted(mission.reposed),
                  "rng": mission.rng.bit_generator.state}
         if hasattr(self.robot, "true_pose"):
             state["sim"] = self.robot.state()

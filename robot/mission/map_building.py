@@ -124,20 +124,26 @@ def heading_pairs(headings: np.ndarray, max_diff_rad: float) -> np.ndarray:
     return np.c_[i, j]
 
 
-def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, config: MapConfig, work: Path):
+def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, config: MapConfig, work: Path,
+            pairs: np.ndarray | None = None):
     """pycolmap incremental SfM of `images` (H, W, 3) uint8 with the known shared `K`, matching
-    only the photos whose compass `headings` (rad) are within `config.match_heading_rad`.
+    only the photos whose compass `headings` (rad) are within `config.match_heading_rad`
+    (`heading_pairs`; or the index `pairs` (P, 2) given).
+    `work` may hold an earlier run's database (a growing photo set mapped again,
+    `robot.mission.repose`): photos already there keep their features, pairs already
+    matched are not matched again, and the last run's largest model is continued (COLMAP
+    registers the new photos into it), so each run extracts, matches and maps only what is
+    new.
     Returns every reconstruction, largest first (the circles' sectors of headings, or
     photos that share no features, make separate models; `map_from_models` places them)."""
     import pycolmap
 
     img_dir = work / "images"
-    img_dir.mkdir(parents=True)
-    names = []
-    for i, im in enumerate(images):
-        names.append(f"{i:05d}.png")
-        cv2.imwrite(str(img_dir / names[-1]), im[..., ::-1])
-    h, w = images[0].shape[:2]
+    img_dir.mkdir(parents=True, exist_ok=True)
+    names = [f"{i:05d}.png" for i in range(len(images))]
+    new = [n for n in names if not (img_dir / n).exists()]
+    for n in new:
+        cv2.imwrite(str(img_dir / n), images[int(n[:5])][..., ::-1])
     db = work / "database.db"
     reader = pycolmap.ImageReaderOptions()
     reader.camera_model = "PINHOLE"
@@ -145,16 +151,26 @@ def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, confi
     extract = pycolmap.FeatureExtractionOptions()
     extract.num_threads, extract.sift.max_num_features = config.threads, config.max_features
     extract.sift.first_octave = config.sift_first_octave
-    with colmap_errors_only():
-        pycolmap.extract_features(db, img_dir, names, camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader,
-                                  extraction_options=extract, device=pycolmap.Device.cpu)
+    if new:
+        with colmap_errors_only():
+            pycolmap.extract_features(db, img_dir, new, camera_mode=pycolmap.CameraMode.SINGLE,
+                                      reader_options=reader, extraction_options=extract, device=pycolmap.Device.cpu)
     matching = pycolmap.FeatureMatchingOptions()
     matching.num_threads = config.threads
-    pairs = heading_pairs(np.asarray(headings), config.match_heading_rad)
-    (work / "pairs.txt").write_text("".join(f"{names[i]} {names[j]}\n" for i, j in pairs))
-    with colmap_errors_only():
-        pycolmap.match_image_pairs(db, matching_options=matching, device=pycolmap.Device.cpu,
-                                   pairing_options=pycolmap.ImportedPairingOptions(match_list_path=work / "pairs.txt"))
+    matched = work / "matched.txt"
+    done = set(matched.read_text().splitlines()) if matched.exists() else set()
+    if pairs is None:
+        pairs = heading_pairs(np.asarray(headings), config.match_heading_rad)
+    todo = [f"{names[i]} {names[j]}" for i, j in pairs]
+    todo = [p for p in todo if p not in done]
+    if todo:
+        (work / "pairs.txt").write_text("".join(f"{p}\n" for p in todo))
+        with colmap_errors_only():
+            pycolmap.match_image_pairs(db, matching_options=matching, device=pycolmap.Device.cpu,
+                                       pairing_options=pycolmap.ImportedPairingOptions(match_list_path=work / "pairs.txt"))
+        with matched.open("a") as f:
+            f.write("".join(f"{p}\n" for p in todo))
+    shutil.rmtree(work / "sparse", ignore_errors=True)
     opts = pycolmap.IncrementalPipelineOptions()
     opts.num_threads, opts.random_seed = config.threads, config.seed
     opts.mapper.num_threads, opts.mapper.random_seed = config.threads, config.seed
@@ -162,11 +178,15 @@ def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, confi
     opts.multiple_models = True  # photos in different rooms often form separate models
     opts.ba_global_frames_ratio = opts.ba_global_points_ratio = 1.4  # fewer global BAs: ~100 photos
     opts.ba_global_max_num_iterations, opts.ba_local_max_num_iterations = 30, 15
+    model = work / "model"  # the largest model of the last run, continued rather than rebuilt
     with colmap_errors_only():
-        maps = pycolmap.incremental_mapping(db, img_dir, work / "sparse", opts)
+        maps = pycolmap.incremental_mapping(db, img_dir, work / "sparse", opts,
+                                            input_path=model if model.is_dir() else "")
     if not maps:
         raise MapError(f"SfM registered none of the {len(images)} photos (too little texture or overlap?)")
     recs = sorted(maps.values(), key=lambda r: -r.num_reg_images())
+    model.mkdir(exist_ok=True)
+    recs[0].write(model)
     if recs[0].num_reg_images() < config.min_registered:
         raise MapError(f"SfM registered only {recs[0].num_reg_images()} of {len(images)} photos; "
                        f"need {config.min_registered}")
@@ -247,7 +267,7 @@ def _median_over_background(d: np.ndarray, a: float, b: float, density: float) -
     return float(m[np.argmin(np.abs(left - right))])
 
 
-def _transform_camera(cam: Camera, world_from_sfm: np.ndarray) -> Camera:
+def transform_camera(cam: Camera, world_from_sfm: np.ndarray) -> Camera:
     """The camera re-expressed in the floor frame (a similarity: the scale goes into t)."""
     s = np.cbrt(np.linalg.det(world_from_sfm[:3, :3]))
     R = world_from_sfm[:3, :3] / s
@@ -290,7 +310,7 @@ def map_from_models(recs: list, database: Path, K: np.ndarray, size_hw: tuple[in
     cameras, parts = {}, []
     for k, (s, a, t) in placement.models.items():
         model, rec, world_from_sfm = models[k][0], models[k][1], world_from_levelled(models[k][2], s, a, t, rig.height)
-        cams = {int(i): Camera(K, w, h, _transform_camera(models[k][3][int(i)], world_from_sfm).cam_from_world,
+        cams = {int(i): Camera(K, w, h, transform_camera(models[k][3][int(i)], world_from_sfm).cam_from_world,
                                f"photo_{int(i):05d}") for i in model.idx}
         parts.append(_sfm_points(rec, world_from_sfm, cams))
         for i, c in cams.items():

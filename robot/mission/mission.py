@@ -114,8 +114,10 @@ def _resume_adaptive(robot: Robot, state: dict, config: AdaptiveConfig, rng: np.
     loc.set_particles(state["particles"], state["log_w"])
     restore_adaptive(journal, state, robot, rng)  # after the filter's set-up drew from rng
     mission = AdaptiveMission(robot, FilteredBody(robot, loc, state["path_m"]), photos, rmap, config, rng, obs,
-                              unfixed={int(i) for i in state.get("unfixed", [])})
+                              unfixed={int(i) for i in state.get("unfixed", [])},
+                              reposed={int(i) for i in state.get("reposed", [])})
     mission.fixes, mission.failed, mission.given_up = state["fixes"], state["failed"], state["given_up"]
+    mission.failed_at_repose = state.get("failed_at_repose", 0)
     mission.goals_reached = [np.asarray(g, float) for g in state["goals"]]
     mission.given_up_goals = [np.asarray(g, float) for g in state.get("given_up_goals", [])]
     mission.bumps = [np.asarray(b, float) for b in state.get("bumps", [])]
