@@ -596,8 +596,8 @@ class AdaptiveMission:
                               np.array([p.photo.compass_rad for p in self.photos]),
                               np.array([p.stage != "localise" for p in self.photos]), self._map_cameras(), c.map,
                               self._sfm_work, c.repose)
-        if found is None:
-            log.info("re-posing by SfM: no model that agrees with the map; the map is unchanged")
+        if isinstance(found, str):
+            log.info(f"re-posing by SfM: the map is unchanged: {found}")
             return 0
         cams, support, err = found
         upright = {i: cam for i, cam in cams.items() if abs(cam.center[2] - self.cam_height) < c.max_fix_height_err_m}

@@ -116,19 +116,23 @@ def sfm_cameras(images: list[np.ndarray], K: np.ndarray, pairs: np.ndarray, conf
 
 def repose_photos(images: list[np.ndarray], K: np.ndarray, compass_rad: np.ndarray, in_model: np.ndarray,
                   anchors: dict[int, Camera], map_config: MapConfig, work: Path,
-                  config: ReposeConfig = ReposeConfig()) -> tuple[dict[int, Camera], dict[int, int], float] | None:
+                  config: ReposeConfig = ReposeConfig()) -> tuple[dict[int, Camera], dict[int, int], float] | str:
     """SfM over every photo (`sfm_cameras` of the `repose_pairs` of their compass headings
     (N,) and whether each is a model photo (N,), in the workspace `work`), placed in the
     map's frame by its `anchors` (`anchored`): ({photo: Camera in the map frame} of every
-    photo the largest model posed, their support, the median anchor error m), or None when
-    SfM fails or the model does not agree with the anchors."""
+    photo the largest model posed, their support, the median anchor error m), or why not
+    (SfM failed, or its model does not agree with the anchors)."""
     pairs = repose_pairs(compass_rad, np.asarray(in_model, bool), map_config.match_heading_rad, config.window)
     try:
         cams, support = sfm_cameras(images, K, pairs, map_config, work)
-    except MapError:  # SfM posed too few photos: no re-posing this time
-        return None
+    except MapError as e:
+        return f"SfM failed ({e})"
     placed = anchored(cams, anchors, config)
     if placed is None:
-        return None
+        shared = len(set(cams) & set(anchors))
+        if shared < config.min_anchors:
+            return f"its largest model shares {shared} photos with the map (needs {config.min_anchors})"
+        return (f"the map's photos do not fit its largest model ({shared} shared, median error above "
+                f"{100 * config.max_anchor_error_m:.0f} cm)")
     T, err = placed
     return {i: transform_camera(c, T) for i, c in cams.items()}, support, err
