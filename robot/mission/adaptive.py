@@ -592,16 +592,16 @@ class AdaptiveMission:
         if self._sfm_work is None:  # features and matches kept between calls; removed with the mission
             self._sfm_work = Path(tempfile.mkdtemp(prefix="ibrnav_repose_"))
             weakref.finalize(self, shutil.rmtree, self._sfm_work, True)
+        known = self._map_cameras()  # the anchors; nothing changes them until the photos join
         found = repose_photos([p.photo.image for p in self.photos], self.robot.intrinsics,
                               np.array([p.photo.compass_rad for p in self.photos]),
-                              np.array([p.stage != "localise" for p in self.photos]), self._map_cameras(), c.map,
+                              np.array([p.stage != "localise" for p in self.photos]), known, c.map,
                               self._sfm_work, c.repose)
         if isinstance(found, str):
             log.info(f"re-posing by SfM: the map is unchanged: {found}")
             return 0
         cams, support, err = found
         upright = {i: cam for i, cam in cams.items() if abs(cam.center[2] - self.cam_height) < c.max_fix_height_err_m}
-        known = self._map_cameras()
         joined = {i: cam.with_pose(cam.cam_from_world, name=f"photo_{i:05d}") for i, cam in upright.items()
                   if i not in known and (self.photos[i].stage != "localise" or self.photos[i].camera is None)}
         for i, cam in joined.items():

@@ -13,7 +13,7 @@ from collections.abc import Callable
 import numpy as np
 
 from localization.motion_models import wrap_angle
-from robot.mission.map_building import RobotMap, umeyama_2d
+from robot.mission.map_building import RobotMap, umeyama
 from robot.mission.observer import MissionPhoto
 from robot.protocol import se2_matrix
 
@@ -62,7 +62,7 @@ def map_scale_error(robot_map: RobotMap | None, truth: dict[int, np.ndarray], ca
     mapped = np.array([robot_map.cameras[i].center[:2] for i in idx])
     true = np.array([(se2_matrix(truth[photos[i].photo.index]) @ np.linalg.inv(cam_from_robot))[:2, 3]
                      for i in idx])
-    s, _, _ = umeyama_2d(mapped, true)
+    s, _, _ = umeyama(mapped, true)
     return float(abs(s - 1.0))
 
 

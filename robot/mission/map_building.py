@@ -141,9 +141,9 @@ def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, confi
     img_dir = work / "images"
     img_dir.mkdir(parents=True, exist_ok=True)
     names = [f"{i:05d}.png" for i in range(len(images))]
-    new = [n for n in names if not (img_dir / n).exists()]
-    for n in new:
-        cv2.imwrite(str(img_dir / n), images[int(n[:5])][..., ::-1])
+    new = [i for i, n in enumerate(names) if not (img_dir / n).exists()]
+    for i in new:
+        cv2.imwrite(str(img_dir / names[i]), images[i][..., ::-1])
     db = work / "database.db"
     reader = pycolmap.ImageReaderOptions()
     reader.camera_model = "PINHOLE"
@@ -153,8 +153,9 @@ def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, confi
     extract.sift.first_octave = config.sift_first_octave
     if new:
         with colmap_errors_only():
-            pycolmap.extract_features(db, img_dir, new, camera_mode=pycolmap.CameraMode.SINGLE,
-                                      reader_options=reader, extraction_options=extract, device=pycolmap.Device.cpu)
+            pycolmap.extract_features(db, img_dir, [names[i] for i in new], camera_mode=pycolmap.CameraMode.SINGLE,
+                                      reader_options=reader, extraction_options=extract,
+                                      device=pycolmap.Device.cpu)
     matching = pycolmap.FeatureMatchingOptions()
     matching.num_threads = config.threads
     matched = work / "matched.txt"
@@ -166,8 +167,9 @@ def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, confi
     if todo:
         (work / "pairs.txt").write_text("".join(f"{p}\n" for p in todo))
         with colmap_errors_only():
+            pairing = pycolmap.ImportedPairingOptions(match_list_path=work / "pairs.txt")
             pycolmap.match_image_pairs(db, matching_options=matching, device=pycolmap.Device.cpu,
-                                       pairing_options=pycolmap.ImportedPairingOptions(match_list_path=work / "pairs.txt"))
+                                       pairing_options=pairing)
         with matched.open("a") as f:
             f.write("".join(f"{p}\n" for p in todo))
     shutil.rmtree(work / "sparse", ignore_errors=True)
@@ -193,12 +195,13 @@ def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, confi
     return recs
 
 
-def umeyama_2d(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """Similarity (s, R 2x2, t) minimising |dst - (s R src + t)|^2 for (N, 2) point sets."""
+def umeyama(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """Similarity (s, R (d, d), t (d,)) minimising |dst - (s R src + t)|^2 for (N, d) point
+    sets (Umeyama 1991)."""
     ms, md = src.mean(0), dst.mean(0)
     a, b = src - ms, dst - md
     U, S, Vt = np.linalg.svd(b.T @ a / len(src))
-    D = np.diag([1.0, np.sign(np.linalg.det(U @ Vt))])
+    D = np.diag([1.0] * (src.shape[1] - 1) + [np.sign(np.linalg.det(U @ Vt))])
     R = U @ D @ Vt
     s = float(np.trace(np.diag(S) @ D) / max((a ** 2).sum() / len(src), 1e-12))
     return s, R, md - s * R @ ms

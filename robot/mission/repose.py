@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ibr.camera import Camera
-from robot.mission.map_building import MapConfig, MapError, heading_pairs, run_sfm, transform_camera
+from robot.mission.map_building import MapConfig, MapError, heading_pairs, run_sfm, transform_camera, umeyama
 
 
 @dataclass(frozen=True)
@@ -55,15 +55,11 @@ class ReposeConfig:
 
 
 def similarity_3d(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
-    """(4, 4) similarity T minimising |dst - T(src)|^2 over (N, 3) point sets (Umeyama 1991)."""
-    ms, md = src.mean(0), dst.mean(0)
-    a, b = src - ms, dst - md
-    U, S, Vt = np.linalg.svd(b.T @ a / len(src))
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
-    R = U @ D @ Vt
-    s = float(np.trace(np.diag(S) @ D) / max((a ** 2).sum() / len(src), 1e-12))
+    """(4, 4) similarity T minimising |dst - T(src)|^2 over (N, 3) point sets
+    (`map_building.umeyama`)."""
+    s, R, t = umeyama(src, dst)
     T = np.eye(4)
-    T[:3, :3], T[:3, 3] = s * R, md - s * R @ ms
+    T[:3, :3], T[:3, 3] = s * R, t
     return T
 
 
