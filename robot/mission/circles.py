@@ -24,7 +24,7 @@ Frames: world metres, z up, floor z = 0; levelled model frames: z along the came
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -65,6 +65,16 @@ class CircleConfig:
     circle's mean (5 cm over >= 0.6 m) are well within it; the robot's, not the scene's."""
     max_rms_m: float = 0.05
     """A model whose cameras miss their circles by more than this (RMS, m) is dropped as wrong."""
+    max_photo_turn_rad: float = np.radians(10.0)
+    """A photo whose SfM yaw, in its model turned onto the compass, lies further than this
+    from its compass heading was registered wrong (rad): five compass sigmas. SfM's wrong
+    registrations in the apartments' random stages were 12-24 degrees off, its right ones
+    within 7 (the robot's compass, not the scene)."""
+    max_photo_miss_m: float = 0.15
+    """A photo whose robot position (its camera less the mount), once placed, lies further
+    than this from the median of its circle's photos in its model was registered wrong (m):
+    all the photos of a circle were taken from one point, and SfM's right registrations
+    were within 5 cm of it, its wrong ones 0.2-1.2 m off; three times `max_rms_m`."""
     min_matches: int = 15
     """Fewest feature matches to turn a photo by (COLMAP's `min_num_matches`)."""
     max_angle_px: float = 2.0
@@ -92,6 +102,8 @@ class Placement:
 
     models: dict[int, tuple[float, float, np.ndarray]]
     centres: dict[int, np.ndarray]
+    photos: dict[int, np.ndarray] = field(default_factory=dict)
+    """{model number: its photos kept (n,)}: those registered wrong are left out."""
 
 
 def circle_ids(estimates: np.ndarray, config: CircleConfig = CircleConfig()) -> np.ndarray:
@@ -170,32 +182,74 @@ class _Problem:
         self.s0 = dict(zip(self.keep, np.exp(x0[:4 * len(self.keep):4])))
         return least_squares(self.residuals, x0).x
 
-    def rms_m(self, x) -> dict[int, float]:
-        """Each model's RMS miss (m) of its cameras from their circles."""
-        sim, centres = self.unpack(x)
+    def robots(self, x) -> dict[int, np.ndarray]:
+        """{model: (n, 2) robot positions (m) of its photos, placed: the cameras less the mount}."""
+        sim, _ = self.unpack(x)
         out = {}
         for (log_s, a, tx, ty), m in zip(sim, self.keep):
             mod = self.models[m]
             cam = np.exp(log_s) * mod.xy @ _rot(a).T + [tx, ty]
-            robot = cam - _rot(a + mod.yaw - self.mount_yaw) @ self.mount_xy
-            c = centres[[self.col[int(k)] for k in self.circle[mod.idx]]]
+            out[m] = cam - _rot(a + mod.yaw - self.mount_yaw) @ self.mount_xy
+        return out
+
+    def rms_m(self, x) -> dict[int, float]:
+        """Each model's RMS miss (m) of its cameras from their circles."""
+        _, centres = self.unpack(x)
+        out = {}
+        for m, robot in self.robots(x).items():
+            c = centres[[self.col[int(k)] for k in self.circle[self.models[m].idx]]]
             out[m] = float(np.sqrt(np.mean(np.sum((robot - c) ** 2, axis=1))))
         return out
 
+    def strays(self, x) -> dict[int, np.ndarray]:
+        """{model: (n,) bool} its photos whose robot position lies over `max_photo_miss_m`
+        from the median of their circle's in that model (a wrong registration; the median
+        because a few wrong ones pull the circle's fitted centre towards them)."""
+        out = {}
+        for m, robot in self.robots(x).items():
+            ks = self.circle[self.models[m].idx]
+            miss = np.zeros(len(ks))
+            for k in np.unique(ks):
+                on = ks == k
+                miss[on] = np.linalg.norm(robot[on] - np.median(robot[on], axis=0), axis=1)
+            out[m] = miss > self.cfg.max_photo_miss_m
+        return out
 
-def _scaled(models: list[LevelledModel], keep: list[int], circle: np.ndarray, floors: dict) -> set[int]:
+
+def _scaled(models: list[LevelledModel], keep: list[int], circle: np.ndarray, floors: dict,
+            apart) -> set[int]:
     """The models whose scale is known: a floor of their own, or two circles shared with
-    models whose scale is known (two robot positions fix a length)."""
+    models whose scale is known that `apart(k0, k1)` says a drive lies between (two robot
+    positions fix a length only when they are apart: apartment 5's robot came back to
+    within 5 cm of its first circle, and that "length" scaled a model 2.5 times too small)."""
     known = set(floors)
     grew = True
     while grew:
         grew = False
         known_circles = {int(c) for m in known for c in np.unique(circle[models[m].idx])}
         for m in keep:
-            if m not in known and len(known_circles & set(np.unique(circle[models[m].idx]).tolist())) >= 2:
+            shared = sorted(known_circles & set(np.unique(circle[models[m].idx]).tolist()))
+            if m not in known and any(apart(k0, k1) for j, k0 in enumerate(shared) for k1 in shared[j + 1:]):
                 known.add(m)
                 grew = True
     return known
+
+
+def _subset(model: LevelledModel, keep: np.ndarray) -> LevelledModel:
+    """The model with only its photos `keep` (n,) bool."""
+    return replace(model, idx=model.idx[keep], xy=model.xy[keep], yaw=model.yaw[keep])
+
+
+def facing_compass(model: LevelledModel, heading: np.ndarray, config: CircleConfig = CircleConfig()) -> np.ndarray:
+    """(n,) bool: the model's photos whose yaw, turned onto the compass `heading` (N,) rad
+    by the model's heading (the circular mean of compass minus yaw, refitted without the
+    photos beyond the limit), lies within `max_photo_turn_rad` of their compass heading."""
+    d = heading[model.idx] - model.yaw
+    ok = np.ones(len(d), bool)
+    for _ in range(2):
+        a = float(np.angle(np.mean(np.exp(1j * d[ok])))) if ok.any() else 0.0
+        ok = np.abs(wrap_angle(d - a)) <= config.max_photo_turn_rad
+    return ok
 
 
 def _circle_means(model: LevelledModel, circle: np.ndarray, heading: np.ndarray) -> dict[int, np.ndarray]:
@@ -207,21 +261,30 @@ def _circle_means(model: LevelledModel, circle: np.ndarray, heading: np.ndarray)
     return {int(k): p[ks == k].mean(0) for k in np.unique(ks)}
 
 
+def _drive_sigma_m(k0: int, k1: int, circle: np.ndarray, driven_m: np.ndarray, config: CircleConfig) -> float:
+    """The odometry's noise (m) on the step from circle k0 to circle k1 (`odometry_drift` of
+    the distance driven between their first photos)."""
+    first = [int(np.flatnonzero(circle == k)[0]) for k in (k0, k1)]
+    return config.odometry_sigma_m + config.odometry_drift * abs(driven_m[first[1]] - driven_m[first[0]])
+
+
+def _apart(k0: int, k1: int, circle: np.ndarray, dr_xy: np.ndarray, driven_m: np.ndarray,
+           config: CircleConfig) -> bool:
+    """Whether the odometry's step from circle k0 to k1 is longer than three times its noise:
+    only such a step tells a direction and a length."""
+    first = [int(np.flatnonzero(circle == k)[0]) for k in (k0, k1)]
+    return bool(np.linalg.norm(dr_xy[first[1]] - dr_xy[first[0]]) > 3 * _drive_sigma_m(k0, k1, circle, driven_m, config))
+
+
 def _drives(model: LevelledModel, circle: np.ndarray, heading: np.ndarray, dr_xy: np.ndarray,
             driven_m: np.ndarray, config: CircleConfig):
     """(model step (2,), odometry step (2,) m) between each two circles of the model in a row
-    whose odometry step is longer than three times its noise (`odometry_drift` of the
-    distance driven between them): only those tell a direction and a length."""
+    that are `_apart`: only those tell a direction and a length."""
     mean = _circle_means(model, circle, heading)
     ks = sorted(mean)
     first = {k: int(np.flatnonzero(circle == k)[0]) for k in ks}
-    out = []
-    for k0, k1 in zip(ks[:-1], ks[1:]):
-        v = dr_xy[first[k1]] - dr_xy[first[k0]]
-        sigma = config.odometry_sigma_m + config.odometry_drift * (driven_m[first[k1]] - driven_m[first[k0]])
-        if np.linalg.norm(v) > 3 * sigma:
-            out.append((mean[k1] - mean[k0], v))
-    return out
+    return [(mean[k1] - mean[k0], dr_xy[first[k1]] - dr_xy[first[k0]]) for k0, k1 in zip(ks[:-1], ks[1:])
+            if _apart(k0, k1, circle, dr_xy, driven_m, config)]
 
 
 def _drives_agree(model: LevelledModel, circle: np.ndarray, heading: np.ndarray, dr_xy: np.ndarray,
@@ -255,18 +318,27 @@ def place_models(models: list[LevelledModel], circle: np.ndarray, heading: np.nd
     position on the robot (m) and `mount_yaw` its yaw there (rad). A model whose scale
     nothing fixes (no floor, fewer than two circles shared with models that have one), or
     that misses its circles by over `max_rms_m`, is left out; when no model has a floor,
-    the largest is kept with the odometry's scale."""
+    the largest is kept with the odometry's scale. Photos SfM registered wrong are left out
+    of their model: those off the compass (`facing_compass`), then, once placed, those off
+    their circle (`_Problem.strays`); the placement is solved again without them."""
+    models = [_subset(m, _at_least_3(facing_compass(m, heading, config))) for m in models]
     floors = {m: model.floor_scale for m, model in enumerate(models)
               if model.floor_scale and _floor_agrees(model, circle, heading, dr_xy, driven_m, config)}
     # a model whose circles lie in other directions than the compass-aided odometry drove
     # is wrong (SfM's mirrored or folded solutions of two circles seen down a corridor)
     keep = [m for m in range(len(models)) if _drives_agree(models[m], circle, heading, dr_xy, driven_m, config)] or [0]
+    apart = lambda k0, k1: _apart(k0, k1, circle, dr_xy, driven_m, config)  # noqa: E731
     while True:
         floors = {m: f for m, f in floors.items() if m in keep}
         # keep only the models whose scale is known (the largest's, from odometry, when none is)
-        kept = [m for m in keep if m in _scaled(models, keep, circle, floors or {keep[0]: None})]
+        kept = [m for m in keep if m in _scaled(models, keep, circle, floors or {keep[0]: None}, apart)]
         prob = _Problem(models, kept, circle, heading, dr_xy, driven_m, mount_xy, mount_yaw, config, floors)
         x = prob.solve(dr_cam_xy)
+        strays = {m: _at_least_3(~out) for m, out in prob.strays(x).items()}
+        if not all(ok.all() for ok in strays.values()):
+            models = [_subset(mod, strays[m]) if m in strays else mod for m, mod in enumerate(models)]
+            keep = kept
+            continue
         rms = prob.rms_m(x)
         bad = [m for m in kept if rms[m] > config.max_rms_m]
         if not bad or len(kept) == 1:
@@ -275,7 +347,14 @@ def place_models(models: list[LevelledModel], circle: np.ndarray, heading: np.nd
     sim, centres = prob.unpack(x)
     held = {int(k) for m in kept for k in circle[models[m].idx]}
     return Placement({m: (float(np.exp(v[0])), float(v[1]), v[2:].copy()) for m, v in zip(kept, sim)},
-                     {k: centres[j].copy() for k, j in prob.col.items() if k in held})
+                     {k: centres[j].copy() for k, j in prob.col.items() if k in held},
+                     {m: models[m].idx.copy() for m in kept})
+
+
+def _at_least_3(ok: np.ndarray) -> np.ndarray:
+    """`ok` (n,) bool, or all True when it would leave fewer than 3 photos (a model needs 3;
+    its circles' and scale's checks judge it whole)."""
+    return ok if ok.sum() >= 3 else np.ones_like(ok)
 
 
 def rotation_from_bearings(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -312,9 +312,9 @@ def map_from_models(recs: list, database: Path, K: np.ndarray, size_hw: tuple[in
                              rig.cam_xy, rig.driven_m, rig.mount_xy, rig.mount_yaw, config.circles)
     cameras, parts = {}, []
     for k, (s, a, t) in placement.models.items():
-        model, rec, world_from_sfm = models[k][0], models[k][1], world_from_levelled(models[k][2], s, a, t, rig.height)
+        rec, world_from_sfm = models[k][1], world_from_levelled(models[k][2], s, a, t, rig.height)
         cams = {int(i): Camera(K, w, h, transform_camera(models[k][3][int(i)], world_from_sfm).cam_from_world,
-                               f"photo_{int(i):05d}") for i in model.idx}
+                               f"photo_{int(i):05d}") for i in placement.photos[k]}
         parts.append(_sfm_points(rec, world_from_sfm, cams))
         for i, c in cams.items():
             cameras.setdefault(i, c)
@@ -432,13 +432,17 @@ def _camera_xy(pose: np.ndarray, cam_from_robot: np.ndarray) -> np.ndarray:
 
 
 def _sfm_points(rec, world_from_sfm: np.ndarray, cameras: dict[int, Camera]):
-    """Floor-frame points, colours and the centre of a camera that saw each."""
+    """Floor-frame points, colours and the centre of a camera that saw each; only the points
+    that one of `cameras` saw (a photo left out of the map leaves its own points out)."""
     pts, cols, seen = [], [], []
     for p in rec.points3D.values():
-        img = rec.images[p.track.elements[0].image_id]
+        saw = (int(Path(rec.images[e.image_id].name).stem) for e in p.track.elements)
+        first = next((i for i in saw if i in cameras), None)
+        if first is None:
+            continue
         pts.append(p.xyz)
         cols.append(p.color)
-        seen.append(cameras[int(Path(img.name).stem)].center)
+        seen.append(cameras[first].center)
     P = np.asarray(pts).reshape(-1, 3) @ world_from_sfm[:3, :3].T + world_from_sfm[:3, 3]
     return P, np.asarray(cols, np.uint8).reshape(-1, 3), np.asarray(seen).reshape(-1, 3)
 

@@ -16,11 +16,11 @@ def _rot(a):
     return np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
 
 
-def _circles(rng):
+def _circles(rng, centres=CENTRES):
     """Three circles of 36 photos: robot centres, camera xy and camera yaws (true)."""
     yaw = np.tile(np.linspace(-np.pi, np.pi, 36, endpoint=False), 3) + rng.uniform(-np.pi, np.pi)
     circle = np.repeat([0, 1, 2], 36)
-    cam = CENTRES[circle] + np.stack([_rot(a - MOUNT_YAW) @ MOUNT_XY for a in yaw])
+    cam = centres[circle] + np.stack([_rot(a - MOUNT_YAW) @ MOUNT_XY for a in yaw])
     return circle, cam, yaw
 
 
@@ -55,6 +55,48 @@ def test_sector_models_are_placed_together_by_their_circles_and_a_mirrored_one_i
         assert np.median(err) < 0.02, (m, np.median(err))
     for k, c in placed.centres.items():
         assert np.linalg.norm(c - CENTRES[k]) < 0.02, (k, c)
+
+
+def _odometry(circle, heading, centres, drift=(1.0, -0.6)):
+    """Dead reckoning of the robot and camera, drifting 12 % per metre of the drives
+    (each 1.4 m), and the distance driven before each photo."""
+    driven = np.repeat([0.0, 1.4, 2.8], 36)
+    dr_xy = centres[circle] + 0.1 * driven[:, None] * np.array(drift)
+    return dr_xy, dr_xy + np.stack([_rot(a - MOUNT_YAW) @ MOUNT_XY for a in heading]), driven
+
+
+def test_photos_sfm_registered_wrong_are_left_out_of_their_model():
+    """SfM put 3 photos of a circle 0.6 m from the rest and turned 3 others 20 degrees (the
+    apartments' wrong registrations: 0.2-1.2 m, 12-24 degrees): they are left out, and the
+    rest is placed as if they had never been there."""
+    rng = np.random.default_rng(3)
+    circle, cam, yaw = _circles(rng)
+    s, a, t = 0.4, 0.7, np.array([1.0, 2.0])
+    model = _model(np.arange(108), cam, yaw, s, a, t, rng, floor=s)
+    model.xy[40:43] += np.array([0.6, 0.0]) @ _rot(a) / s  # 0.6 m off, in the model's units
+    model.yaw[80:83] += np.radians(20.0)
+    heading = yaw + rng.normal(0, np.radians(2), len(yaw))
+    dr_xy, dr_cam, driven = _odometry(circle, heading, CENTRES)
+    placed = place_models([model], circle, heading, dr_xy, dr_cam, driven, MOUNT_XY, MOUNT_YAW)
+    assert sorted(set(range(108)) - set(placed.photos[0].tolist())) == [40, 41, 42, 80, 81, 82]
+    for k, c in placed.centres.items():
+        assert np.linalg.norm(c - CENTRES[k]) < 0.02, (k, c)
+
+
+def test_a_circle_the_robot_came_back_to_does_not_scale_a_model():
+    """The robot's third circle is 5 cm from its first (apartment 5). A model without a floor
+    that shares only those two circles with a scaled one has no length to be scaled by: it
+    is left out, not placed at the scale of a 5 cm baseline."""
+    rng = np.random.default_rng(4)
+    centres = np.array([[0.0, 0.0], [1.3, 0.4], [0.05, 0.0]])
+    circle, cam, yaw = _circles(rng, centres)
+    sector = (np.mod(yaw, 2 * np.pi) // np.pi).astype(int)
+    models = [_model(np.flatnonzero((sector == 0) & (circle != 1)), cam, yaw, 0.3, 1.0, np.zeros(2), rng, floor=0.3),
+              _model(np.flatnonzero(sector == 1), cam, yaw, 2.0, -1.0, np.ones(2), rng)]
+    heading = yaw + rng.normal(0, np.radians(2), len(yaw))
+    dr_xy, dr_cam, driven = _odometry(circle, heading, centres, drift=(0.3, 1.0))
+    placed = place_models(models, circle, heading, dr_xy, dr_cam, driven, MOUNT_XY, MOUNT_YAW)
+    assert sorted(placed.models) == [0]
 
 
 def test_photos_are_turned_into_place_from_a_posed_neighbour_of_their_circle():
