@@ -97,7 +97,8 @@ def run(args: argparse.Namespace) -> int:
         session.write_model([final.cameras[i] for i in sorted(final.cameras)], final.mesh, final.points, final.colors)
         session.commit(sum(r["kind"] == "commit" for r in session.records),
                        {"stage": "finished", "stopped_because": result.stopped_because,
-                        "stop_reason": result.stop_reason, "path_m": result.path_m})
+                        "stop_reason": result.stop_reason, "path_m": result.path_m,
+                        "localised": result.localised, "final_spread_m": result.final_spread_m})
         log.info(f"mission finished: {result.stopped_because} ({result.stop_reason}); final model: {len(result.robot_map.points)} points, "
                  f"{len(result.robot_map.mesh.faces)} faces")
         mission_viz.log_robot_map(result.robot_map.points, result.robot_map.colors, result.robot_map.mesh)
@@ -119,9 +120,17 @@ def run(args: argparse.Namespace) -> int:
                 f"{err['dead_reckoning_mean']:.2f} m (dead reckoning)")
     print(f"captured {len(result.model_photos)} photos ({len(result.photos) - len(result.model_photos)} more to "
           f"localise) in {result.rounds} adaptive round{'s' if result.rounds != 1 else ''}, {len(result.goals)} goals reached, {result.given_up} "
-          f"given up, drove {result.path_m:.1f} m{cov}; stopped: {result.stopped_because}; capture folder {folder}; "
+          f"given up, drove {result.path_m:.1f} m{cov}; stopped: {result.stopped_because}{_lost(result)}; "
+          f"capture folder {folder}; "
           f"{time.perf_counter() - t0:.0f} s")
     return 0
+
+
+def _lost(result) -> str:
+    """", ROBOT LOST (...)" when the mission ended without knowing where the robot is."""
+    if result.localised is False:
+        return f", ROBOT LOST at the end (filter spread {result.final_spread_m:.2f} m)"
+    return ""
 
 
 def register(subparsers) -> None:

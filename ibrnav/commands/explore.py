@@ -60,6 +60,7 @@ def run(args: argparse.Namespace) -> int:
               "rounds": result.rounds, "goals_reached": len(result.goals), "goals_given_up": result.given_up,
               "pnp_fixes": result.fixes, "pnp_failures": result.failed_fixes,
               "stopped_because": result.stopped_because, "stop_reason": result.stop_reason,
+              "localised_at_end": result.localised, "final_spread_m": result.final_spread_m,
               **_truth_report(world, robot, result), "position_errors": obs.error_summary(),
               "seconds": seconds}
     report["eval_capture"] = _eval_capture(world, robot, result, args.eval_poses, args.seed)

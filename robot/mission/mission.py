@@ -46,6 +46,12 @@ class MissionResult:
     stop_reason: str = ""
     stopped_because: str = ""
     """complete | budget | no reachable goal (`adaptive_rounds`)."""
+    final_spread_m: float | None = None
+    """The particle filter's position spread at the end (m; None without a filter)."""
+    localised: bool | None = None
+    """Whether the robot knows where it is at the end: the spread within
+    `MissionFilterConfig.relocalise_std_m` (None without a filter). Lost, the poses of its
+    last photos are guesses: a report says so instead of passing them off as a capture."""
 
     @property
     def model_photos(self) -> list[MissionPhoto]:
@@ -152,7 +158,20 @@ def run_mission(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budge
     result.robot_map, result.path_m = mission.map, mission.body.path_m
     result.goals, result.given_up = mission.goals_reached, mission.given_up
     result.fixes, result.failed_fixes = mission.fixes, mission.failed
+    if isinstance(mission.body, FilteredBody):
+        say_if_lost(result, mission.body.est)
     return result
+
+
+def say_if_lost(result: MissionResult, localizer: MissionLocalizer) -> None:
+    """Set `result.final_spread_m` and `result.localised` from the mission's filter at the
+    end, with a warning when the robot is lost."""
+    result.final_spread_m = localizer.spread_m
+    result.localised = not localizer.needs_fix()
+    if not result.localised:
+        log.warning(f"the robot is lost at the end: its filter's spread is {result.final_spread_m:.2f} m "
+                    f"(localised within {localizer.config.relocalise_std_m:.2f} m); the poses of its last "
+                    f"photos are dead reckoning, not fixes")
 
 
 def adaptive_rounds(mission: AdaptiveMission, result: MissionResult, photo_budget: int, journal=None) -> None:

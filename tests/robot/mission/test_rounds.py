@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from robot.mission.adaptive import AdaptiveConfig
-from robot.mission.mission import MissionResult, adaptive_rounds
+from robot.mission.localizer import MissionFilterConfig, MissionLocalizer
+from robot.mission.mission import MissionResult, adaptive_rounds, say_if_lost
 from robot.mission.observer import MissionPhoto
 
 
@@ -52,3 +53,17 @@ def test_rounds_go_on_until_the_budget_unless_capped(max_rounds, rounds, stopped
 
 def test_the_default_has_no_round_limit():
     assert AdaptiveConfig().max_rounds is None
+
+
+@pytest.mark.parametrize("spread_m, localised", [(0.03, True), (1.0, False)])
+def test_a_mission_says_whether_the_robot_ends_localised(spread_m, localised, caplog):
+    """A filter whose particles are 3 cm apart knows where the robot is; one 1 m apart does
+    not, and the mission says so (a warning, `localised` False) instead of ending quietly."""
+    rng = np.random.default_rng(0)
+    loc = MissionLocalizer(np.zeros(3), np.zeros((1, 2)), MissionFilterConfig(), rng)
+    particles = np.c_[rng.normal(0, spread_m, (500, 2)), np.zeros(500)]
+    loc.set_particles(particles, np.zeros(500))
+    result = MissionResult([], None)
+    say_if_lost(result, loc)
+    assert result.localised is localised and abs(result.final_spread_m / spread_m - 1) < 0.2
+    assert ("lost" in caplog.text) is not localised
