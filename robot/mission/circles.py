@@ -13,7 +13,8 @@ photos of a circle were taken from one robot position. So:
 - `place_models` puts every model in the floor frame at once: one unknown centre per
   circle, one similarity per model (scale, heading, shift), fitted by least squares to
   the models' camera positions (each camera lies `mount` from its circle's centre), the
-  compass (heading), the floor's scale where a model found its floor, and the dead
+  compass (heading), the floor's scale where a model found its floor, the ultrasonic's
+  scale (`map_building.sonar_scale`, weighted by its own error), and the dead
   reckoning of the circles' centres (the first circle stands at the known start);
 - `complete_circles` poses a photo no model registered from a posed photo of its own
   circle: the rotation between the two from their matched features (a pure rotation: the
@@ -86,13 +87,17 @@ class LevelledModel:
     """One SfM model in its levelled frame (z along the cameras' up): photo indices `idx`
     (n,), camera centres `xy` (n, 2) in model units, camera yaws `yaw` (n,) rad,
     `floor_scale` metres per model unit from its floor plane (None: no floor found) and
-    `floor_points` the points that hold that floor."""
+    `floor_points` the points that hold that floor; `sonar_scale` from the ultrasonic."""
 
     idx: np.ndarray
     xy: np.ndarray
     yaw: np.ndarray
     floor_scale: float | None
     floor_points: int = 0
+    sonar_scale: float | None = None
+    """Metres per model unit from the ultrasonic (`map_building.sonar_scale`; None: none)."""
+    sonar_sigma: float = 0.0
+    """Its relative standard error."""
 
 
 @dataclass
@@ -123,11 +128,13 @@ class _Problem:
     """The least-squares problem of `place_models` over the models `keep`. Unknowns: per model
     (log scale, heading rad, shift x, y m), per circle its robot position (x, y m). Residuals,
     each over its sigma: a model's cameras less the mount, averaged per circle, at the
-    circle's centre; its cameras' yaws at the compass; its scale at its floor's (`floors`);
+    circle's centre; its cameras' yaws at the compass; its scale at its floor's (`floors`) and the
+    ultrasonic's (`sonars`: scale, relative sigma);
     the first circle at the known start and each later one an odometry drive from the last."""
 
-    def __init__(self, models, keep, circle, heading, dr_xy, driven_m, mount_xy, mount_yaw, config, floors):
-        self.models, self.keep, self.cfg, self.floors = models, keep, config, floors
+    def __init__(self, models, keep, circle, heading, dr_xy, driven_m, mount_xy, mount_yaw, config, floors,
+                 sonars=None):
+        self.models, self.keep, self.cfg, self.floors, self.sonars = models, keep, config, floors, sonars or {}
         # every circle up to the last a model holds: the dead reckoning chains them from the start
         self.circles = list(range(max(int(circle[i]) for m in keep for i in models[m].idx) + 1))
         self.col = {k: k for k in self.circles}
@@ -163,6 +170,9 @@ class _Problem:
             out.append(wrap_angle(yaw - self.heading[mod.idx]) / self.cfg.compass_sigma_rad)
             if m in self.floors:
                 out.append(np.atleast_1d((log_s - np.log(self.floors[m])) / self.cfg.floor_sigma))
+            if m in self.sonars:
+                scale, sigma = self.sonars[m]
+                out.append(np.atleast_1d((log_s - np.log(scale)) / max(sigma, self.cfg.floor_sigma)))
         return np.concatenate(out)
 
     def start(self, dr_cam_xy: np.ndarray) -> np.ndarray:
@@ -173,7 +183,7 @@ class _Problem:
             a = float(np.angle(np.mean(np.exp(1j * (self.heading[mod.idx] - mod.yaw)))))
             p, q = mod.xy @ _rot(a).T, dr_cam_xy[mod.idx]
             pc, qc = p - p.mean(0), q - q.mean(0)
-            s = mod.floor_scale or max(float(np.sum(pc * qc) / max(np.sum(pc * pc), 1e-12)), 1e-6)
+            s = mod.floor_scale or mod.sonar_scale or max(float(np.sum(pc * qc) / max(np.sum(pc * pc), 1e-12)), 1e-6)
             x += [np.log(s), a, *(q.mean(0) - s * p.mean(0))]
         return np.r_[x, self.dr.ravel()]
 
@@ -297,13 +307,16 @@ def _drives_agree(model: LevelledModel, circle: np.ndarray, heading: np.ndarray,
 
 
 def _floor_agrees(model: LevelledModel, circle: np.ndarray, heading: np.ndarray, dr_xy: np.ndarray,
-                  driven_m: np.ndarray, config: CircleConfig) -> bool:
-    """Whether a model's floor scale is within `floor_trust` of the odometry's (the length
-    of its drives, `_drives`, over theirs in the model); True when no drive tells a length."""
+                  driven_m: np.ndarray, config: CircleConfig, scale: float | None = None) -> bool:
+    """Whether a model's floor scale (or the `scale` given) is within `floor_trust` of the
+    odometry's (the length of its drives, `_drives`, over theirs in the model); True when
+    no drive tells a length."""
     steps = _drives(model, circle, heading, dr_xy, driven_m, config)
     if not steps:
         return True
     s_dr = sum(np.linalg.norm(v) for _, v in steps) / max(sum(np.linalg.norm(u) for u, _ in steps), 1e-12)
+    if scale is not None:
+        return abs(np.log(scale / s_dr)) < config.floor_trust
     trust = config.floor_trust * (2 if model.floor_points >= config.floor_sure_points else 1)
     return abs(np.log(model.floor_scale / s_dr)) < trust
 
@@ -316,7 +329,8 @@ def place_models(models: list[LevelledModel], circle: np.ndarray, heading: np.nd
     (rad), `dr_xy` (N, 2) the robot's and `dr_cam_xy` (N, 2) the camera's dead-reckoning
     position (m), `driven_m` (N,) the distance driven before it; `mount_xy` (2,) the camera's
     position on the robot (m) and `mount_yaw` its yaw there (rad). A model whose scale
-    nothing fixes (no floor, fewer than two circles shared with models that have one), or
+    nothing fixes (no floor or ultrasonic scale, fewer than two circles shared with models
+    that have one), or
     that misses its circles by over `max_rms_m`, is left out; when no model has a floor,
     the largest is kept with the odometry's scale. Photos SfM registered wrong are left out
     of their model: those off the compass (`facing_compass`), then, once placed, those off
@@ -324,15 +338,18 @@ def place_models(models: list[LevelledModel], circle: np.ndarray, heading: np.nd
     models = [_subset(m, _at_least_3(facing_compass(m, heading, config))) for m in models]
     floors = {m: model.floor_scale for m, model in enumerate(models)
               if model.floor_scale and _floor_agrees(model, circle, heading, dr_xy, driven_m, config)}
+    sonars = {m: (model.sonar_scale, model.sonar_sigma) for m, model in enumerate(models)
+              if model.sonar_scale and _floor_agrees(model, circle, heading, dr_xy, driven_m, config, model.sonar_scale)}
     # a model whose circles lie in other directions than the compass-aided odometry drove
     # is wrong (SfM's mirrored or folded solutions of two circles seen down a corridor)
     keep = [m for m in range(len(models)) if _drives_agree(models[m], circle, heading, dr_xy, driven_m, config)] or [0]
     apart = lambda k0, k1: _apart(k0, k1, circle, dr_xy, driven_m, config)  # noqa: E731
     while True:
         floors = {m: f for m, f in floors.items() if m in keep}
+        sonars = {m: f for m, f in sonars.items() if m in keep}
         # keep only the models whose scale is known (the largest's, from odometry, when none is)
-        kept = [m for m in keep if m in _scaled(models, keep, circle, floors or {keep[0]: None}, apart)]
-        prob = _Problem(models, kept, circle, heading, dr_xy, driven_m, mount_xy, mount_yaw, config, floors)
+        kept = [m for m in keep if m in _scaled(models, keep, circle, {**floors, **sonars} or {keep[0]: None}, apart)]
+        prob = _Problem(models, kept, circle, heading, dr_xy, driven_m, mount_xy, mount_yaw, config, floors, sonars)
         x = prob.solve(dr_cam_xy)
         strays = {m: _at_least_3(~out) for m, out in prob.strays(x).items()}
         if not all(ok.all() for ok in strays.values()):

@@ -85,7 +85,7 @@ def model_of_photos(photos: list[MissionPhoto], robot, config) -> RobotMap | Non
     try:
         rmap = initial_map([p.photo.image for p in photos], robot.intrinsics,
                            np.array([p.estimate for p in photos]), np.array([p.photo.compass_rad for p in photos]),
-                           robot.cam_from_robot, config)
+                           robot.cam_from_robot, config, np.array([p.photo.range_m for p in photos]))
     except MapError as e:
         log.info(f"no map of the {len(photos)} photos: {e}")
         return None

@@ -96,7 +96,8 @@ def _start_adaptive(robot: Robot, start_pose: np.ndarray, n_random: int, rcfg: R
     photos, body = run_random_stage(robot, start_pose, n_random, rcfg, rng, obs, journal)
     log.info(f"initial map: SfM of {len(photos)} photos")
     rmap = initial_map([p.photo.image for p in photos], robot.intrinsics, np.array([p.estimate for p in photos]),
-                       np.array([p.photo.compass_rad for p in photos]), robot.cam_from_robot, config.map)
+                       np.array([p.photo.compass_rad for p in photos]), robot.cam_from_robot, config.map,
+                       np.array([p.photo.range_m for p in photos]))
     for i, cam in rmap.cameras.items():
         photos[i].camera = cam
     log.info(f"initial map: {rmap.registered}/{len(photos)} photos posed, {len(rmap.points)} points, "
