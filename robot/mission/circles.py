@@ -338,8 +338,8 @@ def place_models(models: list[LevelledModel], circle: np.ndarray, heading: np.nd
     models = [_subset(m, _at_least_3(facing_compass(m, heading, config))) for m in models]
     floors = {m: model.floor_scale for m, model in enumerate(models)
               if model.floor_scale and _floor_agrees(model, circle, heading, dr_xy, driven_m, config)}
-    sonars = {m: (model.sonar_scale, model.sonar_sigma) for m, model in enumerate(models)
-              if model.sonar_scale and _floor_agrees(model, circle, heading, dr_xy, driven_m, config, model.sonar_scale)}
+    sonars = {m: (model.sonar_scale, model.sonar_sigma) for m, model in enumerate(models) if model.sonar_scale
+              and _floor_agrees(model, circle, heading, dr_xy, driven_m, config, model.sonar_scale)}
     # a model whose circles lie in other directions than the compass-aided odometry drove
     # is wrong (SfM's mirrored or folded solutions of two circles seen down a corridor)
     keep = [m for m in range(len(models)) if _drives_agree(models[m], circle, heading, dr_xy, driven_m, config)] or [0]
