@@ -128,9 +128,9 @@ class _Problem:
     """The least-squares problem of `place_models` over the models `keep`. Unknowns: per model
     (log scale, heading rad, shift x, y m), per circle its robot position (x, y m). Residuals,
     each over its sigma: a model's cameras less the mount, averaged per circle, at the
-    circle's centre; its cameras' yaws at the compass; its scale at its floor's (`floors`) and the
-    ultrasonic's (`sonars`: scale, relative sigma);
-    the first circle at the known start and each later one an odometry drive from the last."""
+    circle's centre; its cameras' yaws at the compass; its scale at its floor's (`floors`)
+    and the ultrasonic's (`sonars`: scale, relative sigma); the first circle at the known
+    start and each later one an odometry drive from the last."""
 
     def __init__(self, models, keep, circle, heading, dr_xy, driven_m, mount_xy, mount_yaw, config, floors,
                  sonars=None):
@@ -283,7 +283,8 @@ def _apart(k0: int, k1: int, circle: np.ndarray, dr_xy: np.ndarray, driven_m: np
     """Whether the odometry's step from circle k0 to k1 is longer than three times its noise:
     only such a step tells a direction and a length."""
     first = [int(np.flatnonzero(circle == k)[0]) for k in (k0, k1)]
-    return bool(np.linalg.norm(dr_xy[first[1]] - dr_xy[first[0]]) > 3 * _drive_sigma_m(k0, k1, circle, driven_m, config))
+    step = np.linalg.norm(dr_xy[first[1]] - dr_xy[first[0]])
+    return bool(step > 3 * _drive_sigma_m(k0, k1, circle, driven_m, config))
 
 
 def _drives(model: LevelledModel, circle: np.ndarray, heading: np.ndarray, dr_xy: np.ndarray,

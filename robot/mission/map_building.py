@@ -372,18 +372,23 @@ def _levelled(rec, rig: _Rig):
     model, frame = levelled_model(idx, np.array([cams[i].center for i in idx]),
                                   np.array([cams[i].world_from_cam[:3, :3] @ up_in_cam for i in idx]),
                                   np.array([cams[i].world_from_cam[:3, 2] for i in idx]), points, rig.height)
-    if rig.ranges_m is not None:
-        seen = {int(Path(im.name).stem): np.array([rec.points3D[p.point3D_id].xyz for p in im.points2D
-                                                   if p.has_point3D()]).reshape(-1, 3)
-                for im in rec.images.values() if im.has_pose}
-        c0, level = frame
-        found = sonar_scale({i: (cams[i].center - c0) @ level.T for i in idx},
-                            {i: cams[i].world_from_cam[:3, 2] @ level.T for i in idx},
-                            {i: (seen[i] - c0) @ level.T for i in idx}, rig.ranges_m,
-                            float(rig.mount_xy @ [np.cos(rig.mount_yaw), np.sin(rig.mount_yaw)]), rig.config.sonar)
-        if found is not None:
-            model = replace(model, sonar_scale=found[0], sonar_sigma=found[1])
+    found = _model_sonar_scale(rec, rig, cams, frame) if rig.ranges_m is not None else None
+    if found is not None:
+        model = replace(model, sonar_scale=found[0], sonar_sigma=found[1])
     return model, rec, frame, cams
+
+
+def _model_sonar_scale(rec, rig: _Rig, cams: dict[int, Camera], frame) -> tuple[float, float] | None:
+    """`sonar_scale` of one SfM model `rec` (its posed `cams` in the SfM frame, levelled by
+    `frame` = (c0, level)): each photo's centre, axis and the points it observed."""
+    c0, level = frame
+    seen = {int(Path(im.name).stem): np.array([rec.points3D[p.point3D_id].xyz for p in im.points2D
+                                               if p.has_point3D()]).reshape(-1, 3)
+            for im in rec.images.values() if im.has_pose}
+    mount_forward_m = float(rig.mount_xy @ [np.cos(rig.mount_yaw), np.sin(rig.mount_yaw)])
+    return sonar_scale({i: (c.center - c0) @ level.T for i, c in cams.items()},
+                       {i: c.world_from_cam[:3, 2] @ level.T for i, c in cams.items()},
+                       {i: (seen[i] - c0) @ level.T for i in cams}, rig.ranges_m, mount_forward_m, rig.config.sonar)
 
 
 def sonar_scale(centres: dict[int, np.ndarray], forwards: dict[int, np.ndarray], seen: dict[int, np.ndarray],
