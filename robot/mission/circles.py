@@ -341,10 +341,6 @@ def place_models(models: list[LevelledModel], circle: np.ndarray, heading: np.nd
               if model.floor_scale and _floor_agrees(model, circle, heading, dr_xy, driven_m, config)}
     sonars = {m: (model.sonar_scale, model.sonar_sigma) for m, model in enumerate(models) if model.sonar_scale
               and _floor_agrees(model, circle, heading, dr_xy, driven_m, config, model.sonar_scale)}
-    # a floor the ultrasonic contradicts is another layer (office 4: a floor of 24 points 13 %
-    # low, inside the odometry's 25 %, where the ultrasonic was 0.7 % off)
-    floors = {m: f for m, f in floors.items()
-              if m not in sonars or abs(np.log(f / sonars[m][0])) <= 3 * np.hypot(config.floor_sigma, sonars[m][1])}
     # a model whose circles lie in other directions than the compass-aided odometry drove
     # is wrong (SfM's mirrored or folded solutions of two circles seen down a corridor)
     keep = [m for m in range(len(models)) if _drives_agree(models[m], circle, heading, dr_xy, driven_m, config)] or [0]

@@ -402,10 +402,8 @@ def sonar_scale(centres: dict[int, np.ndarray], forwards: dict[int, np.ndarray],
     (horizontal angle), give the nearest surface in model units as the `nearest_share`
     quantile of their forward distances (a few badly triangulated points nearer than the
     surface do not make it); its metres over that are the photo's scale. The model's is the
-    median over its photos; its error 1.25 x (IQR / 1.35) / median / sqrt(n / 4) (the
-    median's standard error, with every 4th photo counted: photos 10 degrees apart with a
-    60 degree view see the same points, so their scales are not independent; counted all,
-    a 28-photo model claimed 3 % and was 10 % off, and outweighed a right floor). Tuned on offices 0-4 (the 10 % quantile: 5 % read 0.3-1.8 % high, 25 %
+    median over its photos; its error 1.25 x (IQR / 1.35) / median / sqrt(n) (the median's
+    standard error). Tuned on offices 0-4 (the 10 % quantile: 5 % read 0.3-1.8 % high, 25 %
     4-5 % low) and held out on apartments 0-9: on the models whose photos agree (IQR of
     the scales <= 11 %) within 0.1-1.6 % (offices) and 0.2-1 % (apartments; one 4.5 %),
     where the floor (`floor_depth`) was 0.2-36 % off or not found. None with fewer than 5
@@ -425,7 +423,7 @@ def sonar_scale(centres: dict[int, np.ndarray], forwards: dict[int, np.ndarray],
     if len(scales) < 5:
         return None
     q1, med, q3 = np.percentile(scales, [25, 50, 75])
-    return float(med), float(1.25 * (q3 - q1) / 1.35 / med / np.sqrt(len(scales) / 4))
+    return float(med), float(1.25 * (q3 - q1) / 1.35 / med / np.sqrt(len(scales)))
 
 
 def levelled_model(idx: np.ndarray, centres: np.ndarray, ups: np.ndarray, forwards: np.ndarray,
