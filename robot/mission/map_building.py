@@ -359,11 +359,16 @@ class _Rig:
         self.driven_m = np.r_[0.0, np.cumsum(np.hypot(*np.diff(estimates[:, :2], axis=0).T))]
 
 
+def posed_images(rec) -> dict:
+    """{photo index: pycolmap Image} of the photos an SfM model `rec` posed (`run_sfm` names
+    each photo by its index)."""
+    return {int(Path(im.name).stem): im for im in rec.images.values() if im.has_pose}
+
+
 def _levelled(rec, rig: _Rig):
     """(LevelledModel, rec, (c0, level), {index: Camera in the SfM frame}) of one SfM model
     (`levelled_model`); None with fewer than 3 photos."""
-    cams = {int(Path(im.name).stem): Camera.from_pycolmap(im, rec.cameras[im.camera_id])
-            for im in rec.images.values() if im.has_pose}
+    cams = {i: Camera.from_pycolmap(im, rec.cameras[im.camera_id]) for i, im in posed_images(rec).items()}
     idx = np.array(sorted(cams), int)
     if len(idx) < 3:
         return None
@@ -382,9 +387,8 @@ def _model_sonar_scale(rec, rig: _Rig, cams: dict[int, Camera], frame) -> tuple[
     """`sonar_scale` of one SfM model `rec` (its posed `cams` in the SfM frame, levelled by
     `frame` = (c0, level)): each photo's centre, axis and the points it observed."""
     c0, level = frame
-    seen = {int(Path(im.name).stem): np.array([rec.points3D[p.point3D_id].xyz for p in im.points2D
-                                               if p.has_point3D()]).reshape(-1, 3)
-            for im in rec.images.values() if im.has_pose}
+    seen = {i: np.array([rec.points3D[p.point3D_id].xyz for p in im.points2D if p.has_point3D()]).reshape(-1, 3)
+            for i, im in posed_images(rec).items()}
     mount_forward_m = float(rig.mount_xy @ [np.cos(rig.mount_yaw), np.sin(rig.mount_yaw)])
     return sonar_scale({i: (c.center - c0) @ level.T for i, c in cams.items()},
                        {i: c.world_from_cam[:3, 2] @ level.T for i, c in cams.items()},

@@ -29,7 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from ibr.camera import Camera
-from robot.mission.map_building import MapConfig, MapError, heading_pairs, run_sfm, transform_camera, umeyama
+from robot.mission.map_building import (MapConfig, MapError, heading_pairs, posed_images, run_sfm,
+                                         transform_camera, umeyama)
 
 
 @dataclass(frozen=True)
@@ -101,13 +102,9 @@ def sfm_cameras(images: list[np.ndarray], K: np.ndarray, pairs: np.ndarray, conf
     `map_building.run_sfm`) and each posed photo's number of triangulated observations (its
     support)."""
     rec = run_sfm(images, K, np.zeros(len(images)), config, work, pairs)[0]
-    cams, support = {}, {}
-    for im in rec.images.values():
-        if im.has_pose:
-            i = int(Path(im.name).stem)
-            cams[i] = Camera.from_pycolmap(im, rec.cameras[im.camera_id])
-            support[i] = int(im.num_points3D)
-    return cams, support
+    posed = posed_images(rec)
+    return ({i: Camera.from_pycolmap(im, rec.cameras[im.camera_id]) for i, im in posed.items()},
+            {i: int(im.num_points3D) for i, im in posed.items()})
 
 
 def repose_photos(images: list[np.ndarray], K: np.ndarray, compass_rad: np.ndarray, in_model: np.ndarray,

@@ -43,9 +43,7 @@ def test_sector_models_are_placed_together_by_their_circles_and_a_mirrored_one_i
               _model(pick(2, [1, 2]), cam, yaw, *sims[2], rng),
               _model(pick(2, [0, 1]), cam, yaw, 1.0, 0.5, np.zeros(2), rng, mirror=True)]
     heading = yaw + rng.normal(0, np.radians(2), len(yaw))
-    driven = np.repeat([0.0, 1.4, 2.8], 36)
-    dr_xy = CENTRES[circle] + 0.1 * driven[:, None] * np.array([1.0, -0.6])  # the odometry drifts 12 % per metre
-    dr_cam = dr_xy + np.stack([_rot(a - MOUNT_YAW) @ MOUNT_XY for a in heading])
+    dr_xy, dr_cam, driven = _odometry(circle, heading, CENTRES)
     placed = place_models(models, circle, heading, dr_xy, dr_cam, driven, MOUNT_XY, MOUNT_YAW)
     assert sorted(placed.models) == [0, 1, 2]  # the mirrored model is out
     for m, (s, a, t) in placed.models.items():
@@ -57,11 +55,12 @@ def test_sector_models_are_placed_together_by_their_circles_and_a_mirrored_one_i
         assert np.linalg.norm(c - CENTRES[k]) < 0.02, (k, c)
 
 
-def _odometry(circle, heading, centres, drift=(1.0, -0.6)):
+def _odometry(circle, heading, centres, drift=(1.0, -0.6), stretch=1.0):
     """Dead reckoning of the robot and camera, drifting 12 % per metre of the drives
-    (each 1.4 m), and the distance driven before each photo."""
+    (each 1.4 m) along `drift`, every position `stretch` times the truth (drives read
+    long), and the distance driven before each photo."""
     driven = np.repeat([0.0, 1.4, 2.8], 36)
-    dr_xy = centres[circle] + 0.1 * driven[:, None] * np.array(drift)
+    dr_xy = stretch * centres[circle] + 0.1 * driven[:, None] * np.array(drift)
     return dr_xy, dr_xy + np.stack([_rot(a - MOUNT_YAW) @ MOUNT_XY for a in heading]), driven
 
 
@@ -170,9 +169,7 @@ def test_a_model_without_a_floor_takes_its_metres_from_the_ultrasonic():
     s, a, t = 0.7, -0.4, np.array([0.5, 1.0])
     model = replace(_model(np.arange(108), cam, yaw, s, a, t, rng), sonar_scale=s * 1.005, sonar_sigma=0.005)
     heading = yaw + rng.normal(0, np.radians(2), len(yaw))
-    _, _, driven = _odometry(circle, heading, CENTRES)
-    dr_xy = 1.12 * CENTRES[circle]
-    dr_cam = dr_xy + np.stack([_rot(h - MOUNT_YAW) @ MOUNT_XY for h in heading])
+    dr_xy, dr_cam, driven = _odometry(circle, heading, CENTRES, drift=(0.0, 0.0), stretch=1.12)
     placed = place_models([model], circle, heading, dr_xy, dr_cam, driven, MOUNT_XY, MOUNT_YAW)
     assert abs(placed.models[0][0] / s - 1) < 0.01
     odometry_only = place_models([replace(model, sonar_scale=None)], circle, heading, dr_xy, dr_cam, driven,
