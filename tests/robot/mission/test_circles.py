@@ -159,6 +159,33 @@ def test_the_random_stage_of_an_apartment_is_mapped_nearly_whole():
     assert rmap.registered >= 100 and np.median(err) < 0.03, (rmap.registered, np.median(err))
 
 
+def test_a_floor_the_ultrasonic_contradicts_does_not_scale_a_model():
+    """The default demo's failure: a model of only two circles 0.67 m apart (too short a step
+    for the odometry of 2.8 m of driving to check) found a 13-point "floor" at 6.4 times its
+    scale, where its ultrasonic read within 1 %. The floor is not used: both models are
+    placed, each at its own scale, instead of the floor pulling the pair to a compromise that
+    put the map 1 m off."""
+    from dataclasses import replace
+
+    rng = np.random.default_rng(6)
+    centres = np.array([[0.0, 0.0], [1.3, 0.4], [0.45, 0.5]])
+    circle, cam, yaw = _circles(rng, centres)
+    sector = (np.mod(yaw, 2 * np.pi) // np.pi).astype(int)
+    sims = [(0.3, 1.0, np.zeros(2)), (0.15, -1.0, np.ones(2))]
+    models = [_model(np.flatnonzero(sector == 0), cam, yaw, *sims[0], rng, floor=0.3 * 1.005),
+              _model(np.flatnonzero((sector == 1) & (circle != 1)), cam, yaw, *sims[1], rng, floor=0.15 * 6.4)]
+    models = [replace(models[0], sonar_scale=0.3 * 0.995, sonar_sigma=0.01),
+              replace(models[1], floor_points=13, sonar_scale=0.15 * 1.008, sonar_sigma=0.009)]
+    heading = yaw + rng.normal(0, np.radians(2), len(yaw))
+    dr_xy, dr_cam, driven = _odometry(circle, heading, centres, drift=(0.3, 1.0))
+    placed = place_models(models, circle, heading, dr_xy, dr_cam, driven, MOUNT_XY, MOUNT_YAW)
+    assert sorted(placed.models) == [0, 1]
+    for m, (s, _, _) in placed.models.items():
+        assert abs(s / sims[m][0] - 1) < 0.015, (m, s)
+    for k, c in placed.centres.items():
+        assert np.linalg.norm(c - centres[k]) < 0.03, (k, c)
+
+
 def test_a_model_without_a_floor_takes_its_metres_from_the_ultrasonic():
     """No floor found: the ultrasonic's scale (0.5 % off, 0.5 % error) places the model, not
     the odometry (whose drives read 12 % long here, as the simulator's are 14 % off)."""
