@@ -368,7 +368,8 @@ def posed_images(rec) -> dict:
 def _levelled(rec, rig: _Rig):
     """(LevelledModel, rec, (c0, level), {index: Camera in the SfM frame}) of one SfM model
     (`levelled_model`); None with fewer than 3 photos."""
-    cams = {i: Camera.from_pycolmap(im, rec.cameras[im.camera_id]) for i, im in posed_images(rec).items()}
+    posed = posed_images(rec)
+    cams = {i: Camera.from_pycolmap(im, rec.cameras[im.camera_id]) for i, im in posed.items()}
     idx = np.array(sorted(cams), int)
     if len(idx) < 3:
         return None
@@ -377,18 +378,19 @@ def _levelled(rec, rig: _Rig):
     model, frame = levelled_model(idx, np.array([cams[i].center for i in idx]),
                                   np.array([cams[i].world_from_cam[:3, :3] @ up_in_cam for i in idx]),
                                   np.array([cams[i].world_from_cam[:3, 2] for i in idx]), points, rig.height)
-    found = _model_sonar_scale(rec, rig, cams, frame) if rig.ranges_m is not None else None
+    found = _model_sonar_scale(rec, posed, rig, cams, frame) if rig.ranges_m is not None else None
     if found is not None:
         model = replace(model, sonar_scale=found[0], sonar_sigma=found[1])
     return model, rec, frame, cams
 
 
-def _model_sonar_scale(rec, rig: _Rig, cams: dict[int, Camera], frame) -> tuple[float, float] | None:
-    """`sonar_scale` of one SfM model `rec` (its posed `cams` in the SfM frame, levelled by
-    `frame` = (c0, level)): each photo's centre, axis and the points it observed."""
+def _model_sonar_scale(rec, posed: dict, rig: _Rig, cams: dict[int, Camera], frame) -> tuple[float, float] | None:
+    """`sonar_scale` of one SfM model `rec` (its `posed_images` and their `cams` in the SfM
+    frame, levelled by `frame` = (c0, level)): each photo's centre, axis and the points it
+    observed."""
     c0, level = frame
     seen = {i: np.array([rec.points3D[p.point3D_id].xyz for p in im.points2D if p.has_point3D()]).reshape(-1, 3)
-            for i, im in posed_images(rec).items()}
+            for i, im in posed.items()}
     mount_forward_m = float(rig.mount_xy @ [np.cos(rig.mount_yaw), np.sin(rig.mount_yaw)])
     return sonar_scale({i: (c.center - c0) @ level.T for i, c in cams.items()},
                        {i: c.world_from_cam[:3, 2] @ level.T for i, c in cams.items()},
