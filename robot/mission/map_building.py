@@ -449,7 +449,8 @@ def sonar_scale(centres: dict[int, np.ndarray], forwards: dict[int, np.ndarray],
     return _agreeing(np.log(scales), np.array(circle), agree)
 
 
-def _agreeing(log_scales: np.ndarray, circle: np.ndarray, agree: float, min_photos: int = 3) -> tuple[float, float] | None:
+def _agreeing(log_scales: np.ndarray, circle: np.ndarray, agree: float,
+              min_photos: int = 3) -> tuple[float, float] | None:
     """(scale, relative standard error) of the largest group of photos whose `log_scales`
     (n,) lie within `agree` of its median: the group's median, and its spread (at least
     agree / 2) over the square root of the circles (`circle` (n,)) it spans: the photos of
