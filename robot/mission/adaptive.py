@@ -56,7 +56,7 @@ from robot.mission.localizer import FilteredBody, MissionFilterConfig, MissionLo
 from robot.mission.map_building import MapConfig, RobotMap, Tracks, extend_map, stereo_tracks
 from robot.mission.observer import MissionObserver, MissionPhoto
 from robot.mission.random_stage import Body
-from robot.mission.repose import ReposeConfig, repose_photos
+from robot.mission.repose import ReposeConfig, odometry_held, repose_photos
 from robot.protocol import Photo, Robot, robot_camera
 
 log = logging.getLogger(__name__)
@@ -580,10 +580,20 @@ class AdaptiveMission:
                 and self._spread() > self.config.filter.relocalise_std_m):
             self.repose()
 
+    def _odometry_held(self, cams: dict[int, Camera], known: dict[int, Camera]) -> set[int]:
+        """The photos of the re-posed `cams` {photo: Camera, map frame} that the odometry ties
+        to map photos (`known`) SfM re-posed where the map has them (`repose.odometry_held`)."""
+        tol = self.config.repose.max_anchor_error_m
+        agree = {i: bool(np.linalg.norm(cam.center - known[i].center) <= tol) for i, cam in cams.items() if i in known}
+        poses = {i: self.pose_of_camera(cam.cam_from_world) for i, cam in cams.items()}
+        odometry = np.array([p.photo.odometry for p in self.photos])
+        return odometry_held(poses, odometry, agree, self.config.repose)
+
     def repose(self) -> int:
         """Re-pose every photo by SfM, placed on the map's own photos (`robot.mission.repose`).
         Photos the map lacks join it at their SfM pose: model photos unposed or posed only at
-        the filter's estimate, and localise photos no fix posed (tracks only, `reposed`).
+        the filter's estimate, and localise photos no fix posed (tracks only, `reposed`),
+        each only where the odometry ties it to map photos SfM agrees with (`_odometry_held`).
         Their tracks extend the map, so PnP works there from now on. When the robot's last
         photo, taken where it still stands, is one of them, its pose is the filter's
         measurement, as a fix would be. Returns how many photos joined the map."""
@@ -602,6 +612,12 @@ class AdaptiveMission:
             return 0
         cams, support, err = found
         upright = {i: cam for i, cam in cams.items() if abs(cam.center[2] - self.cam_height) < c.max_fix_height_err_m}
+        held = self._odometry_held(upright, known)
+        loose = [i for i in upright if i not in held and i not in known]
+        if loose:
+            log.info(f"re-posing by SfM: {len(loose)} of the {sum(i not in known for i in upright)} photos new to the "
+                     f"map left out (the odometry ties them to no map photo that agrees)")
+        upright = {i: cam for i, cam in upright.items() if i in held}
         joined = {i: cam.with_pose(cam.cam_from_world, name=f"photo_{i:05d}") for i, cam in upright.items()
                   if i not in known and (self.photos[i].stage != "localise" or self.photos[i].camera is None)}
         for i, cam in joined.items():

@@ -128,7 +128,7 @@ def circle_ids(estimates: np.ndarray, config: CircleConfig = CircleConfig()) -> 
     return np.r_[0, np.cumsum(step >= config.circle_move_m)].astype(int)
 
 
-def _rot(a) -> np.ndarray:
+def rot2d(a) -> np.ndarray:
     """2-D rotation matrices (..., 2, 2) of angles `a` (rad)."""
     c, s = np.cos(a), np.sin(a)
     return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
@@ -167,8 +167,8 @@ class _Problem:
         for (log_s, a, tx, ty), m in zip(sim, self.keep):
             mod = self.models[m]
             yaw = a + mod.yaw
-            cam = np.exp(log_s) * mod.xy @ _rot(a).T + [tx, ty]
-            robot = cam - _rot(yaw - self.mount_yaw) @ self.mount_xy
+            cam = np.exp(log_s) * mod.xy @ rot2d(a).T + [tx, ty]
+            robot = cam - rot2d(yaw - self.mount_yaw) @ self.mount_xy
             # each circle's cameras, less the mount, meet at its centre; their mean is the
             # measurement (a circle's cameras are only the mount apart, too little to scale by)
             ks = self.circle[mod.idx]
@@ -193,7 +193,7 @@ class _Problem:
         for m in self.keep:
             mod = self.models[m]
             a = float(np.angle(np.mean(np.exp(1j * (self.heading[mod.idx] - mod.yaw)))))
-            p, q = mod.xy @ _rot(a).T, dr_cam_xy[mod.idx]
+            p, q = mod.xy @ rot2d(a).T, dr_cam_xy[mod.idx]
             pc, qc = p - p.mean(0), q - q.mean(0)
             s = mod.floor_scale or mod.sonar_scale or max(float(np.sum(pc * qc) / max(np.sum(pc * pc), 1e-12)), 1e-6)
             x += [np.log(s), a, *(q.mean(0) - s * p.mean(0))]
@@ -210,8 +210,8 @@ class _Problem:
         out = {}
         for (log_s, a, tx, ty), m in zip(sim, self.keep):
             mod = self.models[m]
-            cam = np.exp(log_s) * mod.xy @ _rot(a).T + [tx, ty]
-            out[m] = cam - _rot(a + mod.yaw - self.mount_yaw) @ self.mount_xy
+            cam = np.exp(log_s) * mod.xy @ rot2d(a).T + [tx, ty]
+            out[m] = cam - rot2d(a + mod.yaw - self.mount_yaw) @ self.mount_xy
         return out
 
     def rms_m(self, x) -> dict[int, float]:
@@ -278,7 +278,7 @@ def _circle_means(model: LevelledModel, circle: np.ndarray, heading: np.ndarray)
     """{circle: the mean (2,) of the model's cameras on it}, in model units, turned by the
     compass (the model's heading: the circular mean of compass minus model yaw)."""
     a = float(np.angle(np.mean(np.exp(1j * (heading[model.idx] - model.yaw)))))
-    p = model.xy @ _rot(a).T
+    p = model.xy @ rot2d(a).T
     ks = circle[model.idx]
     return {int(k): p[ks == k].mean(0) for k in np.unique(ks)}
 
@@ -457,7 +457,7 @@ def complete_circles(world_from_cam: dict[int, np.ndarray], circle: np.ndarray, 
                     continue
                 T = np.eye(4)
                 T[:3, :3] = R_wi
-                T[:2, 3] = centres[int(circle[i])] + _rot(yaw - mount_yaw) @ mount_xy
+                T[:2, 3] = centres[int(circle[i])] + rot2d(yaw - mount_yaw) @ mount_xy
                 T[2, 3] = camera_height_m
                 posed[i] = added[i] = T
                 grew = True

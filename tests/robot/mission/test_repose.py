@@ -10,7 +10,7 @@ from robot.mission.coverage import surface_samples
 from robot.mission.map_building import RobotMap
 from robot.mission.observer import MissionObserver, MissionPhoto
 from robot.mission.random_stage import Body, RandomExplorationConfig, random_exploration
-from robot.mission.repose import ReposeConfig, anchored, similarity_3d
+from robot.mission.repose import ReposeConfig, anchored, odometry_held, similarity_3d
 from robot.protocol import robot_camera
 from robot.sim_robot import SimRobot, SimRobotConfig
 
@@ -62,6 +62,36 @@ def test_too_few_shared_photos_place_nothing():
     anchors, sfm, _ = truth_and_sfm()
     few = {i: anchors[i] for i in range(ReposeConfig().min_anchors - 1)}
     assert anchored(sfm, few) is None
+
+
+def _walk(rng, n=40):
+    """A robot's true poses (n, 3) along a walk of short legs and turns in place, and its
+    odometry (n, 3): the same steps, 10 % long and turned 3 degrees (its own frame)."""
+    true, odo = [np.zeros(3)], [np.array([0.5, -0.2, 0.3])]
+    for _ in range(n - 1):
+        turn, leg = rng.uniform(-1.0, 1.0), rng.uniform(0.0, 0.8)
+        t, o = true[-1], odo[-1]
+        true.append(np.r_[t[:2] + leg * np.array([np.cos(t[2] + turn), np.sin(t[2] + turn)]), t[2] + turn])
+        a = o[2] + turn * 1.02
+        odo.append(np.r_[o[:2] + 1.1 * leg * np.array([np.cos(a + 0.05), np.sin(a + 0.05)]), a])
+    return np.array(true), np.array(odo)
+
+
+def test_photos_the_odometry_does_not_tie_to_the_map_are_left_out():
+    """SfM re-posed a walk of 40 photos right to 2 cm, except photos 20-27, which it put
+    1 m off (one room's repeated texture taken for another's) and 33-39, whose map photos
+    disagree with it. The run the map's photos hold is kept (across photo 10, which SfM did
+    not pose); the others are left out, and so are 28-32: right, but cut off from the map's
+    photos by the wrong run, nothing ties them to the map."""
+    rng = np.random.default_rng(3)
+    true, odo = _walk(rng)
+    sfm = true + np.c_[rng.normal(0, 0.02, (40, 2)), np.zeros(40)]
+    sfm[20:28, :2] += [1.0, 0.4]
+    sfm[33:, :2] += [0.0, 0.6]
+    poses = {i: sfm[i] for i in range(40) if i != 10}  # SfM did not pose photo 10
+    agree = {0: True, 5: True, 15: True, 33: False, 36: False, 39: True}
+    kept = odometry_held(poses, odo, agree, ReposeConfig())
+    assert kept == set(range(20)) - {10}
 
 
 def test_a_mission_reposes_the_photos_its_map_lacks():
