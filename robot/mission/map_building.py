@@ -214,15 +214,20 @@ def umeyama(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.nda
 
 
 def _level(centres: np.ndarray, ups: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(c0, level): the camera centres' mean and the rotation (rows: new axes) that puts the
-    mean of the cameras' `ups` (N, 3) (each camera's known world up, in the SfM frame) on +z.
+    """(c0, level): a point at the camera centres' median height (their mean, moved along the
+    up to the median height) and the rotation (rows: new axes) that puts the mean of the
+    cameras' `ups` (N, 3) (each camera's known world up, in the SfM frame) on +z. The
+    median height, not the mean: the cameras' height is the floor's reference (`floor_depth`)
+    and the placed model's (`world_from_levelled`), and a photo SfM registered far off moves
+    a mean (apartment 6: a whole placed model of a first map sat 12.3 m above the floor).
     The cameras' rotations fix the floor's normal to a tenth of a degree; the best-fit plane of
     their centres does not: a robot's circles of photos are only the mount offset (5 cm) wide,
     and 1 cm of SfM noise tilted that plane by 2 degrees (office, 48 photos), which smeared
     the floor's points over 10 cm of depth 3 m away."""
-    c0 = centres.mean(0)
     n = np.asarray(ups, float).mean(0)
     n /= np.linalg.norm(n)
+    c0 = centres.mean(0)
+    c0 = c0 + np.median((centres - c0) @ n) * n
     x = np.cross([0, 1.0, 0], n) if abs(n[1]) < 0.9 else np.cross([1.0, 0, 0], n)
     x /= np.linalg.norm(x)
     return c0, np.stack([x, np.cross(n, x), n])
@@ -488,7 +493,7 @@ def levelled_model(idx: np.ndarray, centres: np.ndarray, ups: np.ndarray, forwar
 def world_from_levelled(frame: tuple[np.ndarray, np.ndarray], s: float, a: float, t: np.ndarray,
                     height: float) -> np.ndarray:
     """The 4x4 similarity of a levelled model (`frame` = (c0, level)) placed with scale `s`,
-    heading `a` (rad) and shift `t` (2,) m, its cameras' mean at the camera `height`."""
+    heading `a` (rad) and shift `t` (2,) m, its cameras' median at the camera `height`."""
     c0, level = frame
     S = np.eye(4)
     S[:2, :2] = s * np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])

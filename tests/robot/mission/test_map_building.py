@@ -52,6 +52,21 @@ def test_scale_from_the_camera_height_is_within_one_percent():
         assert levelled_model(idx, centres, ups, fwd, np.zeros((0, 3)), height)[0].floor_scale is None
 
 
+def test_a_photo_registered_far_off_moves_neither_the_floor_nor_the_cameras_height():
+    """Three of the 12 photos SfM registered 40 model units away (a wrong registration): the
+    floor's scale stays within 1 % and the other cameras at the camera's height (a mean of
+    the centres would have lifted the cameras' reference by 10 units and moved both)."""
+    centres, ups, points, true_c, height, fwd, _ = synthetic_sfm("office", 0.37)
+    off = centres.copy()
+    off[[2, 6, 9]] += 40.0 * ups[[2, 6, 9]]
+    idx = np.arange(len(centres))
+    model, frame = levelled_model(idx, off, ups, fwd, points, height)
+    assert abs(model.floor_scale * 0.37 - 1) < 0.01, model.floor_scale * 0.37
+    M = world_from_levelled(frame, model.floor_scale, 0.0, np.zeros(2), height)
+    good = np.setdiff1d(idx, [2, 6, 9])
+    assert np.abs((off[good] @ M[:3, :3].T + M[:3, 3])[:, 2] - height).max() < 0.01
+
+
 def test_floor_depth_is_the_bottom_layer_below_the_cameras():
     rng = np.random.default_rng(1)
     walls = -rng.uniform(-1.4, 1.2, 3000)  # wall points at every height
