@@ -118,7 +118,8 @@ def odometry_held(poses: dict[int, np.ndarray], odometry: np.ndarray, anchors_ag
         j, i = ids[k - 1], ids[k]
         d = driven[i] - driven[j]
         step = rot2d(poses[j][2] - odometry[j][2]) @ (odometry[i][:2] - odometry[j][:2])
-        if d <= config.link_max_m and np.hypot(*(poses[i][:2] - poses[j][:2] - step)) <= config.link_tol_m + config.link_drift * d:
+        miss = np.hypot(*(poses[i][:2] - poses[j][:2] - step))
+        if d <= config.link_max_m and miss <= config.link_tol_m + config.link_drift * d:
             run[k] = run[k - 1]
     kept = set()
     for r in np.unique(run):
