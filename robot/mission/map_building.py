@@ -219,7 +219,7 @@ def _level(centres: np.ndarray, ups: np.ndarray) -> tuple[np.ndarray, np.ndarray
     cameras' `ups` (N, 3) (each camera's known world up, in the SfM frame) on +z. The
     median height, not the mean: the cameras' height is the floor's reference (`floor_depth`)
     and the placed model's (`world_from_levelled`), and a photo SfM registered far off moves
-    a mean (apartment 6: a whole placed model of a first map sat 12.3 m above the floor).
+    a mean (apartment 6: one first map had a whole model 12.3 m above the floor, its x, y right).
     The cameras' rotations fix the floor's normal to a tenth of a degree; the best-fit plane of
     their centres does not: a robot's circles of photos are only the mount offset (5 cm) wide,
     and 1 cm of SfM noise tilted that plane by 2 degrees (office, 48 photos), which smeared
