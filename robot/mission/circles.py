@@ -128,6 +128,11 @@ def circle_ids(estimates: np.ndarray, config: CircleConfig = CircleConfig()) -> 
     return np.r_[0, np.cumsum(step >= config.circle_move_m)].astype(int)
 
 
+def _sure_floor(model: LevelledModel, config: CircleConfig) -> bool:
+    """Whether `floor_sure_points` or more points hold the model's floor."""
+    return model.floor_points >= config.floor_sure_points
+
+
 def rot2d(a) -> np.ndarray:
     """2-D rotation matrices (..., 2, 2) of angles `a` (rad)."""
     c, s = np.cos(a), np.sin(a)
@@ -179,8 +184,7 @@ class _Problem:
                 out.append(miss * np.sqrt(on.sum()) * (self.s0[m] / np.exp(log_s)) / self.cfg.photo_sigma_m)
             out.append(wrap_angle(yaw - self.heading[mod.idx]) / self.cfg.compass_sigma_rad)
             if m in self.floors:
-                sure = mod.floor_points >= self.cfg.floor_sure_points
-                sigma = self.cfg.floor_sigma if sure else self.cfg.floor_unsure_sigma
+                sigma = self.cfg.floor_sigma if _sure_floor(mod, self.cfg) else self.cfg.floor_unsure_sigma
                 out.append(np.atleast_1d((log_s - np.log(self.floors[m])) / sigma))
             if m in self.sonars:
                 scale, sigma = self.sonars[m]
@@ -330,7 +334,7 @@ def _floor_agrees(model: LevelledModel, circle: np.ndarray, heading: np.ndarray,
     s_dr = sum(np.linalg.norm(v) for _, v in steps) / max(sum(np.linalg.norm(u) for u, _ in steps), 1e-12)
     if scale is not None:
         return abs(np.log(scale / s_dr)) < config.floor_trust
-    trust = config.floor_trust * (2 if model.floor_points >= config.floor_sure_points else 1)
+    trust = config.floor_trust * (2 if _sure_floor(model, config) else 1)
     return abs(np.log(model.floor_scale / s_dr)) < trust
 
 

@@ -43,7 +43,7 @@ from ibr.proxy.normals import estimate_normals, remove_outliers
 from ibr.proxy.poisson import PoissonConfig, poisson_mesh
 from ibr.proxy.sfm import colmap_errors_only
 from ibr.proxy.triangulation import TriangulationConfig, pair_tracks
-from robot.mission.circles import CircleConfig, LevelledModel, circle_ids, complete_circles, place_models
+from robot.mission.circles import CircleConfig, LevelledModel, circle_ids, complete_circles, place_models, rot2d
 
 
 log = logging.getLogger(__name__)
@@ -496,7 +496,7 @@ def world_from_levelled(frame: tuple[np.ndarray, np.ndarray], s: float, a: float
     heading `a` (rad) and shift `t` (2,) m, its cameras' median at the camera `height`."""
     c0, level = frame
     S = np.eye(4)
-    S[:2, :2] = s * np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    S[:2, :2] = s * rot2d(a)
     S[:2, 3], S[2, 2], S[2, 3] = t, s, height
     return S @ rigid(level, -level @ c0)
 

@@ -119,8 +119,8 @@ def odometry_held(poses: dict[int, np.ndarray], odometry: np.ndarray, anchors_ag
     apartment mission above had 19 new photos in runs 0.15-4 m off (one room's repeated
     texture taken for another's) beside 118 right ones, with its anchors 1.9 cm off at the
     median; all 19 are left out here, and 101 of the 118 kept."""
-    ids = sorted(poses)
-    driven = np.r_[0.0, np.cumsum(np.hypot(*np.diff(np.asarray(odometry, float)[:, :2], axis=0).T))]
+    ids, odometry = sorted(poses), np.asarray(odometry, float)
+    driven = np.r_[0.0, np.cumsum(np.hypot(*np.diff(odometry[:, :2], axis=0).T))]
     links = [(a, b) for b in range(len(ids)) for a in range(max(0, b - config.link_photos), b)
              if _step_agrees(poses[ids[a]], poses[ids[b]], odometry[ids[a]], odometry[ids[b]],
                              driven[ids[b]] - driven[ids[a]], config)]
@@ -140,7 +140,7 @@ def _step_agrees(p0: np.ndarray, p1: np.ndarray, o0: np.ndarray, o1: np.ndarray,
     """Whether the step between two robot poses `p0`, `p1` (3,) in the map frame is the
     odometry's step from `o0` to `o1` (3,), turned into the map frame by `p0`'s heading,
     within `link_tol_m` + `link_drift` x `driven_m`, with at most `link_max_m` driven."""
-    step = rot2d(p0[2] - o0[2]) @ (np.asarray(o1[:2]) - o0[:2])
+    step = rot2d(p0[2] - o0[2]) @ (o1[:2] - o0[:2])
     miss = float(np.hypot(*(p1[:2] - p0[:2] - step)))
     return driven_m <= config.link_max_m and miss <= config.link_tol_m + config.link_drift * driven_m
 
