@@ -17,15 +17,16 @@ From the map of the photos so far (`robot.mission.map_building`), each round:
    target-node switching within `switch_m` on the estimate of an SE(2) particle filter
    (`robot.mission.localizer`): odometry and compass between nodes, *vision* at the nodes
    (SIFT + RANSAC PnP against the map, `localization.feature_localizer`, as a mixture
-   proposal; after a failed fix it looks the way the nearest map photo looked and tries
-   again; goal photos without a fix stay out of the map's tracks), and an extra photo when
-   the filter's spread grows too large: the plan
+   proposal, only when level, `max_fix_tilt_px`; after a failed fix it looks the way the
+   nearest map photo looked and tries again; goal photos without a fix stay out of the
+   map's tracks), and an extra photo when the filter's spread grows too large: the plan
    consumes the filter's estimate, never a simulator's truth. On an obstacle it
-   marks the contact point blocked on the grid (for this and every later plan), backs off,
-   drives a little off the path and re-plans; after `max_obstacles` obstacles it
+   marks the contact point blocked on the grid (for this goal; dear for every later one),
+   backs off, drives a little off the path and re-plans; after `max_obstacles` obstacles it
    gives the goal up and takes the next;
 5. photographs at each goal, localises those photos, and rebuilds the map with them
-   (triangulation with the localised poses fixed, Poisson mesh).
+   (triangulation with the localised poses fixed, Poisson mesh); the localise photos a fix
+   posed add their tracks to what PnP matches against (`rebuild`).
 
 Algorithm code only: what happens is reported to a `MissionObserver`
 (`robot.mission.observer`); `robot.mission.mission.run_mission` runs the rounds. Frames: world SE(2) poses (x, y, theta), metres, radians.
@@ -121,6 +122,15 @@ class AdaptiveConfig:
     """A PnP fix farther than this from the dead-reckoning estimate is rejected (m)."""
     max_fix_height_err_m: float = 0.15
     """A PnP fix whose camera height is off by more than this is rejected (m)."""
+    max_fix_tilt_px: float = 6.0
+    """A PnP fix whose camera is tilted out of the map's level (`tilt_of_camera`: the robot
+    stands level on a flat floor, and so did its map photos) by more than the angle that
+    moves the image centre this many pixels, atan(px / focal length), is rejected. An
+    image-space limit, 1.5 times the RANSAC inlier threshold: on apartment 1, fixes right
+    to 5 cm tilted at most 1.0 degree (41 fixes; 6 px at its focal length of 277 px is 1.2
+    degrees), while the wrong ones (0.15-2.8 m off), which passed the height and jump
+    checks, tilted 1.5-3.9 degrees; held out, on apartment 7, 23 right fixes tilted at most
+    1.1 degrees and 4 wrong ones (0.2-5.7 m off) 4.6-20 degrees."""
     grid: NavGridConfig = field(default_factory=lambda: NavGridConfig(z_floor_margin=0.08, z_max=1.2))
     """Navigation grid (KDE of above-ground points)."""
     view_quality: ViewQualityConfig = field(default_factory=ViewQualityConfig)
@@ -175,7 +185,8 @@ class AdaptiveMission:
         self.given_up_goals: list[np.ndarray] = []
         """Goals given up: no candidate is drawn near them again."""
         self.bumps: list[np.ndarray] = []
-        """Where the bumpers touched something (world xy, m, on the estimate): blocked in every grid."""
+        """Where the bumpers touched something (world xy, m, on the estimate): blocked while
+        the robot tries the goal it bumped on the way to, dear in every later grid (`_with_bumps`)."""
         self.unfixed: set[int] = set(unfixed or ())
         """Goal photos PnP could not localise, posed at the filter's estimate: in the model
         (rendering, coverage) but not in the map's tracks, which PnP localises against (an
@@ -187,6 +198,12 @@ class AdaptiveMission:
         self.n_candidates = self.n_frontier_goals = 0  # of the last goal choice
         self.give_up_reason = ""
         self.tracks = stereo_tracks(self._map_cameras(), self._feats, config.localizer.triangulation)
+        looked = set(self._track_cameras()) - set(self._map_cameras())
+        if looked:  # a resumed mission: the fixed localise photos' tracks too
+            self.tracks = self.tracks + stereo_tracks(self._track_cameras(), self._feats,
+                                                      config.localizer.triangulation, only=looked)
+        self._tracked_to = len(photos)
+        """Photos before this index are in the tracks if they ever will be (`rebuild`)."""
         self.fmap = self._feature_map()
 
     # --- localisation -------------------------------------------------------------------
@@ -201,12 +218,18 @@ class AdaptiveMission:
 
     def _map_cameras(self) -> dict[int, Camera]:
         """The model's cameras posed by SfM or by a vision fix, and the localise photos SfM
-        re-posed (what the tracks are made of)."""
+        re-posed (what the map's points are made of)."""
         return {**{i: c for i, c in self._model_cameras().items() if i not in self.unfixed},
                 **{i: self.photos[i].camera for i in sorted(self.reposed)}}
 
+    def _track_cameras(self) -> dict[int, Camera]:
+        """What the localiser's tracks are made of: the map's cameras and the localise photos
+        a fix posed."""
+        return {**self._map_cameras(),
+                **{i: p.camera for i, p in enumerate(self.photos) if p.stage == "localise" and p.camera is not None}}
+
     def _feature_map(self) -> FeatureMap:
-        """SIFT + PnP map of the tracks so far (built once, then grown by `rebuild`)."""
+        """SIFT + PnP map of the tracks so far (built once, then grown by `rebuild` and `repose`)."""
         return FeatureMap(self.tracks.points, self.tracks.descriptors, self.tracks.owner, self.config.localizer)
 
     def pose_of_camera(self, cam_from_world: np.ndarray) -> np.ndarray:
@@ -215,15 +238,31 @@ class AdaptiveMission:
         return np.array([world_from_robot[0, 3], world_from_robot[1, 3],
                          np.arctan2(world_from_robot[1, 0], world_from_robot[0, 0])])
 
+    def _robot_up(self, cam_from_world: np.ndarray) -> np.ndarray:
+        """The robot's up axis (3,) at a camera pose (the mount undone), world frame."""
+        return (np.linalg.inv(cam_from_world) @ self.robot.cam_from_robot)[:3, 2]
+
+    def tilt_of_camera(self, cam_from_world: np.ndarray) -> float:
+        """Angle (rad) between the robot's up axis at a camera pose and the map's level: the
+        median up axis of the map's photos, each taken standing level (a map whose floor
+        fit leaves it tilted by a degree, as apartment 0's was by 1.3, tilts its right
+        fixes alike). 0 for a camera where the robot stands level in the map."""
+        ups = np.array([self._robot_up(c.cam_from_world) for c in self._map_cameras().values()]).reshape(-1, 3)
+        level = np.median(ups, axis=0) if len(ups) else np.array([0.0, 0.0, 1.0])
+        level /= np.linalg.norm(level)
+        return float(np.arccos(np.clip(self._robot_up(cam_from_world) @ level, -1.0, 1.0)))
+
     def localise_photo(self, photo: Photo):
         """PnP result (`PnPResult`) of a photo against the map if it passes the sanity
-        checks (camera height; within `max_fix_jump_m` of the estimate, or 3 spreads), else None."""
+        checks (camera height; level, `max_fix_tilt_px`; within `max_fix_jump_m` of the
+        estimate, or 3 spreads), else None."""
         c = self.config
         res = self.fmap.localize(photo.image, self.template) if len(self.fmap) >= c.localizer.min_inliers else None
         if res is not None:
             centre = np.linalg.inv(res.cam_from_world)[:3, 3]
             pose = self.pose_of_camera(res.cam_from_world)
-            if (abs(centre[2] - self.cam_height) < c.max_fix_height_err_m
+            level = self.tilt_of_camera(res.cam_from_world) <= np.arctan(c.max_fix_tilt_px / self.template.K[0, 0])
+            if (abs(centre[2] - self.cam_height) < c.max_fix_height_err_m and level
                     and np.hypot(*(pose[:2] - self.body.est.pose[:2])) < max(c.max_fix_jump_m, 3 * self._spread())):
                 self.fixes += 1
                 return res
@@ -445,18 +484,25 @@ class AdaptiveMission:
             cost = np.where(free_cells.reshape(H, W) | heard, grid.cost, unseen)
             # the ultrasonic found it empty: passable, if dear where the map's points say otherwise
             grid = replace(grid, cost=np.where(heard, np.minimum(cost, self.config.max_path_cost), cost))
-        grid = self._with_bumps(grid, self.bumps)
+        grid = self._with_bumps(grid, self.bumps, dear=True)
         self.obs.grid(grid)
         return grid
 
-    def _with_bumps(self, grid, contacts: list[np.ndarray]):
-        """`grid` with the cells within `robot_radius_m` of each contact point (2,) blocked."""
+    def _with_bumps(self, grid, contacts: list[np.ndarray], dear: bool = False):
+        """`grid` with the cells within `robot_radius_m` of each contact point (2,) blocked,
+        or, when `dear`, made to cost at least `max_path_cost` (passable where no other way
+        is). A contact is marked where the estimate was, as uncertain as it: blocked for
+        ever, wrong marks sealed doorways and corridors (apartment 0: 145 bumps in one
+        mission; 14 of its 23 goals given up for "no path" had one on the final map without
+        them), so only the goal being tried treats its own bumps as walls."""
         if not contacts:
             return grid
         H, W = grid.shape
         xy = grid.cell_to_world(np.indices((H, W)).reshape(2, -1).T)
         d = np.linalg.norm(xy[:, None] - np.asarray(contacts)[None], axis=2).min(axis=1)
-        return replace(grid, cost=np.where(d.reshape(H, W) < self.config.robot_radius_m, np.inf, grid.cost))
+        near = d.reshape(H, W) < self.config.robot_radius_m
+        cost = np.maximum(grid.cost, self.config.max_path_cost) if dear else np.inf
+        return replace(grid, cost=np.where(near, cost, grid.cost))
 
     def _from_here(self, grid):
         """`grid` with the cells within `robot_radius_m` plus twice the filter's spread of
@@ -501,7 +547,7 @@ class AdaptiveMission:
         c = self.config
         obstacles, legs = 0, 0
         self.give_up_reason = ""
-        grid = self._with_bumps(grid, self.bumps)  # the obstacles found since the grid was built
+        grid = self._with_bumps(grid, self.bumps, dear=True)  # the obstacles found since the grid was built
         while obstacles <= c.max_obstacles and legs < c.max_legs_per_goal:
             path = plan_path(self._from_here(grid), self.body.est.pose[:2], goal[:2], max_cost=c.max_path_cost)
             if path is None:
@@ -564,17 +610,27 @@ class AdaptiveMission:
         return out
 
     def rebuild(self, new: list[MissionPhoto]) -> None:
-        """Add the new posed photos' tracks to the map (mesh rebuilt) and the localiser."""
+        """Add the new model photos `new` to the map (their tracks when a fix posed them; the
+        mesh rebuilt), and to the localiser's tracks only, the tracks of the localise photos
+        fixed since the last rebuild: PnP's map grows wherever the robot looked and knew
+        where it was, not only at its goals (apartment 7's first-round map, grown so, gave
+        8 level fixes in the next round's 96 photos instead of 2). Then re-pose by SfM when
+        PnP keeps failing, even in a round that reached no goal (the robot is most lost there)."""
+        cfg = self.config.localizer.triangulation
         cams = self._model_cameras()
         new_ids = {i for i in cams if any(self.photos[i] is q for q in new)}
-        if not new_ids:
-            return
         fixed = new_ids - self.unfixed
-        tracks = (stereo_tracks(self._map_cameras(), self._feats, self.config.localizer.triangulation, only=fixed)
-                  if fixed else Tracks.empty())
-        self.map = extend_map(self.map, {i: cams[i] for i in new_ids}, tracks, self.config.map)
-        self.tracks = self.tracks + tracks
-        self.fmap = self._feature_map()
+        looked = {i for i in range(self._tracked_to, len(self.photos))
+                  if self.photos[i].stage == "localise" and self.photos[i].camera is not None}
+        self._tracked_to = len(self.photos)
+        if new_ids:
+            tracks = stereo_tracks(self._map_cameras(), self._feats, cfg, only=fixed) if fixed else Tracks.empty()
+            self.map = extend_map(self.map, {i: cams[i] for i in new_ids}, tracks, self.config.map)
+            self.tracks = self.tracks + tracks
+        if looked:
+            self.tracks = self.tracks + stereo_tracks(self._track_cameras(), self._feats, cfg, only=looked)
+        if new_ids or looked:
+            self.fmap = self._feature_map()
         r = self.config.repose
         if (r is not None and self.failed - self.failed_at_repose >= r.after_failures
                 and self._spread() > self.config.filter.relocalise_std_m):
@@ -587,7 +643,9 @@ class AdaptiveMission:
         agree = {i: bool(np.linalg.norm(cam.center - known[i].center) <= tol) for i, cam in cams.items() if i in known}
         poses = {i: self.pose_of_camera(cam.cam_from_world) for i, cam in cams.items()}
         odometry = np.array([p.photo.odometry for p in self.photos])
-        return odometry_held(poses, odometry, agree, self.config.repose)
+        dead_reckoning = np.array([np.full(3, np.nan) if p.dead_reckoning is None else p.dead_reckoning
+                                   for p in self.photos])  # the adaptive stage's; none before a resume
+        return odometry_held(poses, odometry, agree, self.config.repose, dead_reckoning)
 
     def repose(self) -> int:
         """Re-pose every photo by SfM, placed on the map's own photos (`robot.mission.repose`).

@@ -75,6 +75,12 @@ class MapConfig:
     thread: its OpenMP threads spin and crawl, 10x, on a busy 2-core machine)."""
     max_point_range_m: float = 12.0
     """Points farther than this from every camera are dropped (badly triangulated)."""
+    max_camera_height_err_m: float = 0.15
+    """A photo SfM posed more than this above or below the camera's height on the mount is a
+    wrong registration (the robot stands on a flat floor) and stays out of the map, with
+    the points only it saw (apartment 3: seven photos of one circle posed 0.5 m low, tilted
+    4 degrees; PnP against their points gave fixes as wrong). The mission's bound on a PnP
+    fix's height (`AdaptiveConfig.max_fix_height_err_m`) is the same."""
     circles: CircleConfig = field(default_factory=CircleConfig)
     """How SfM's models are placed together and the circles completed (`robot.mission.circles`)."""
     sonar: SonarConfig = field(default_factory=SonarConfig)
@@ -329,6 +335,7 @@ def map_from_models(recs: list, database: Path, K: np.ndarray, size_hw: tuple[in
         rec, world_from_sfm = models[k][1], world_from_levelled(models[k][2], s, a, t, rig.height)
         cams = {int(i): Camera(K, w, h, transform_camera(models[k][3][int(i)], world_from_sfm).cam_from_world,
                                f"photo_{int(i):05d}") for i in placement.photos[k]}
+        cams = at_mount_height(cams, rig.height, config.max_camera_height_err_m)
         parts.append(_sfm_points(rec, world_from_sfm, cams))
         for i, c in cams.items():
             cameras.setdefault(i, c)
@@ -342,6 +349,12 @@ def map_from_models(recs: list, database: Path, K: np.ndarray, size_hw: tuple[in
              f"({[r.num_reg_images() for r in recs]} photos each; {sfm_posed} photos), "
              f"{len(added)} more photos turned into place in their circles")
     return _mesh_map(cameras, pts, cols, seen_from, config, registered=len(cameras))
+
+
+def at_mount_height(cameras: dict[int, Camera], height_m: float, tol_m: float) -> dict[int, Camera]:
+    """The cameras {photo: Camera, floor frame} whose centres lie within `tol_m` of the
+    mount's `height_m` above the floor (m): where a robot on a flat floor can have taken them."""
+    return {i: c for i, c in cameras.items() if abs(c.center[2] - height_m) <= tol_m}
 
 
 class _Rig:

@@ -15,7 +15,8 @@ camera centres and those of the map's *anchors*, the photos SfM or a PnP fix pos
 SfM only adds what the map lacked. A model whose anchors do not agree with it is not used
 (a wrong model, or one that merged two rooms by a repeated texture). The anchors check a
 model only where it meets the map: within a model that passes, a photo joins only where the
-robot's own odometry ties it, photo by photo, to map photos that agree (`odometry_held`);
+robot's own odometry (its compass-aided dead reckoning where it has one) ties it, photo by
+photo, to map photos that agree (`odometry_held`);
 on two apartment missions (seeds 3 and 5) it let in 27 and 42 photos 0.15-4 m off, the map
 grew from them and the filter followed their wrong points. The workspace keeps
 every photo's features, every pair's matches and the last model between calls, so a call
@@ -35,6 +36,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from ibr.camera import Camera
+from localization.motion_models import wrap_angle
 from robot.mission.circles import rot2d
 from robot.mission.map_building import (MapConfig, MapError, heading_pairs, posed_images, run_sfm,
                                          transform_camera, umeyama)
@@ -57,15 +59,17 @@ class ReposeConfig:
     localising against its map, or knows where it is, does not need SfM)."""
     link_tol_m: float = 0.15
     """Two photos taken one after the other are linked when the SfM step between their robot
-    poses is the odometry's step (turned into the map frame) within this (m) ..."""
-    link_drift: float = 0.3
+    poses is the robot's own measure of it (`robot_steps`) within this (m) ..."""
+    link_drift: float = 0.15
     """... plus this share of the distance the odometry drove between them ..."""
-    link_max_m: float = 1.5
-    """... and it drove at most this (m). Measured on a finished apartment mission (seed 3,
-    its round-9 re-posing run again): steps between photos SfM posed right missed the
-    odometry's by up to 0.33 m over 1.2 m (bumps and back-offs drive more than the net
-    step), while the photos SfM posed wrong sat in runs 0.4-4 m off. The robot's odometry,
-    not the scene's."""
+    link_max_m: float = 5.0
+    """... and it drove at most this (m). The robot's dead reckoning, not the scene's. Chosen
+    on two re-posings run again offline (apartments 5 and 0, first re-posing of each),
+    checked on a third (apartment 1): with 0.3 and 1.5 m, and the odometry's steps, they
+    kept 8 of 58, 10 of 108 and 0 of 87 photos SfM posed right (within 15 cm), because a
+    gap of photos SfM left unposed (1.8-2.2 m driven) cut each run from the map's photos;
+    now 20, 108 and 87, and none of the 7 posed wrong (0.2-1.2 m off). Wrong runs met
+    before sat 0.4-4 m off, right steps missed by 0.25 m over 1.8 m."""
     link_photos: int = 3
     """A photo is linked to any of this many photos SfM posed before it, not only the last:
     one photo SfM got wrong does not cut a run of right ones in two (on that mission the
@@ -108,22 +112,25 @@ def anchored(sfm: dict[int, Camera], anchors: dict[int, Camera],
 
 
 def odometry_held(poses: dict[int, np.ndarray], odometry: np.ndarray, anchors_agree: dict[int, bool],
-                  config: ReposeConfig = ReposeConfig()) -> set[int]:
+                  config: ReposeConfig = ReposeConfig(), dead_reckoning: np.ndarray | None = None) -> set[int]:
     """The photos of `poses` {photo: robot pose (x, y m, theta rad) in the map frame, from
     SfM} that the robot's own odometry ties to the map: each photo is linked to those of the
     `link_photos` posed before it (in the order taken; `odometry` (N, 3) of every photo, in
-    the odometry frame) whose step to it agrees (`_step_agrees`), and a run of linked photos
-    is kept when most of its anchors agree with the map (`anchors_agree` {photo: its SfM
-    pose within `max_anchor_error_m` of its map pose}). A run no anchor holds is left out:
-    `anchored` checks the model only where it meets the map, and that re-posing of the
-    apartment mission above had 19 new photos in runs 0.15-4 m off (one room's repeated
-    texture taken for another's) beside 118 right ones, with its anchors 1.9 cm off at the
-    median; all 19 are left out here, and 101 of the 118 kept."""
+    the odometry frame) whose step to it agrees (`_step_agrees`, on `robot_steps`), and a
+    run of linked photos is kept when most of its anchors agree with the map
+    (`anchors_agree` {photo: its SfM pose within `max_anchor_error_m` of its map pose}). A
+    run no anchor holds is left out: `anchored` checks the model only where it meets the
+    map, and that re-posing of the apartment mission above had 19 new photos in runs
+    0.15-4 m off (one room's repeated texture taken for another's) beside 118 right ones,
+    with its anchors 1.9 cm off at the median; all 19 are left out here, and 101 of the 118
+    kept. `dead_reckoning` (N, 3): each photo's compass-aided dead reckoning (world frame;
+    NaN where unknown), the steps' better measure where two photos have it."""
     ids, odometry = sorted(poses), np.asarray(odometry, float)
     driven = np.r_[0.0, np.cumsum(np.hypot(*np.diff(odometry[:, :2], axis=0).T))]
+    step = robot_steps(poses, odometry, dead_reckoning)
     links = [(a, b) for b in range(len(ids)) for a in range(max(0, b - config.link_photos), b)
-             if _step_agrees(poses[ids[a]], poses[ids[b]], odometry[ids[a]], odometry[ids[b]],
-                             driven[ids[b]] - driven[ids[a]], config)]
+             if _step_agrees(poses[ids[a]], poses[ids[b]], step(ids[a], ids[b]), driven[ids[b]] - driven[ids[a]],
+                             config)]
     a, b = np.array(links, int).reshape(-1, 2).T
     _, run = connected_components(coo_matrix((np.ones(len(a)), (a, b)), shape=(len(ids), len(ids))), directed=False)
     kept = set()
@@ -135,12 +142,30 @@ def odometry_held(poses: dict[int, np.ndarray], odometry: np.ndarray, anchors_ag
     return kept
 
 
-def _step_agrees(p0: np.ndarray, p1: np.ndarray, o0: np.ndarray, o1: np.ndarray, driven_m: float,
-                 config: ReposeConfig) -> bool:
+def robot_steps(poses: dict[int, np.ndarray], odometry: np.ndarray, dead_reckoning: np.ndarray | None):
+    """step(i, j): the robot's own measure (2,) of its move from photo i to photo j, in the
+    map frame (m). Where both photos have a compass-aided dead reckoning, its step, turned
+    by the map's heading offset from the compass (the median over the posed photos): the
+    compass bounds the heading error of every drive. Else the odometry's step turned by
+    photo i's map heading: its heading drifts with every turn between the two photos (the
+    simulated robot's: 0.14 x the turn), and on an apartment mission the compass's steps
+    missed the truth by 0.15 m at the 90th percentile where the odometry's missed by 0.19
+    (0.17 against 0.23 on another; at most 0.53 m against 1.37)."""
+    dr = np.full((len(odometry), 3), np.nan) if dead_reckoning is None else np.asarray(dead_reckoning, float)
+    known = [i for i in poses if np.isfinite(dr[i]).all()]
+    offset = float(np.median([wrap_angle(poses[i][2] - dr[i][2]) for i in known])) if known else 0.0
+
+    def step(i: int, j: int) -> np.ndarray:
+        if np.isfinite(dr[[i, j]]).all():
+            return rot2d(offset) @ (dr[j, :2] - dr[i, :2])
+        return rot2d(poses[i][2] - odometry[i, 2]) @ (odometry[j, :2] - odometry[i, :2])
+    return step
+
+
+def _step_agrees(p0: np.ndarray, p1: np.ndarray, step: np.ndarray, driven_m: float, config: ReposeConfig) -> bool:
     """Whether the step between two robot poses `p0`, `p1` (3,) in the map frame is the
-    odometry's step from `o0` to `o1` (3,), turned into the map frame by `p0`'s heading,
-    within `link_tol_m` + `link_drift` x `driven_m`, with at most `link_max_m` driven."""
-    step = rot2d(p0[2] - o0[2]) @ (o1[:2] - o0[:2])
+    robot's own measure of it, `step` (2,) (`robot_steps`), within `link_tol_m` +
+    `link_drift` x `driven_m`, with at most `link_max_m` driven."""
     miss = float(np.hypot(*(p1[:2] - p0[:2] - step)))
     return driven_m <= config.link_max_m and miss <= config.link_tol_m + config.link_drift * driven_m
 

@@ -211,3 +211,60 @@ def test_an_unlocalised_robot_is_sent_to_no_frontier(office):
         assert len(m.frontier_goals(grid)) == 0
     finally:
         est.set_particles(particles, log_w)
+
+
+def test_a_fix_tilted_out_of_level_is_rejected(office, monkeypatch):
+    """The robot's camera is level: a PnP pose at the right place and heading but pitched by
+    2 degrees (beyond `max_fix_tilt_px`, 1.2 degrees at this focal length) is a wrong fix
+    (their tilt gave away wrong fixes 0.15-2.8 m off in an apartment); the level one passes."""
+    from localization.feature_localizer import PnPResult
+    from scipy.spatial.transform import Rotation
+
+    m, robot, _ = office
+    true = robot_camera(robot.true_pose, robot.intrinsics, robot.image_size, robot.cam_from_robot)
+    pitched = true.cam_from_world.copy()
+    pitched[:3, :3] = Rotation.from_euler("x", 2.0, degrees=True).as_matrix() @ pitched[:3, :3]
+    pitched[:3, 3] = -pitched[:3, :3] @ true.center  # the same camera centre
+    for T, accepted in ((true.cam_from_world, True), (pitched, False)):
+        monkeypatch.setattr(m.fmap, "localize", lambda image, template, T=T: PnPResult(T, 40, 30, true.with_pose(T)))
+        fixes = m.fixes
+        assert (m.localise_photo(robot.capture()) is not None) == accepted
+        assert m.fixes == fixes + accepted
+
+
+def test_fixed_localise_photos_join_the_localisers_tracks_not_the_map(office):
+    """Localise photos a fix posed add their tracks to what PnP matches against at the next
+    rebuild, even with no new model photo; the map's points (mesh, grid) stay the model's."""
+    m, robot, _ = office
+    n_map, n_tracks, start = len(m.map.points), len(m.tracks.points), len(m.photos)
+    for _ in range(4):
+        m.body.move(turn=np.pi / 2)
+        m.localise_here()
+    fixed = [i for i in range(start, len(m.photos)) if m.photos[i].camera is not None]
+    assert fixed and all(m.photos[i].stage == "localise" for i in fixed)
+    m.rebuild([])
+    assert len(m.map.points) == n_map
+    assert len(m.tracks.points) > n_tracks and len(m.fmap) == len(m.tracks.points)
+    n = len(m.tracks.points)
+    m.rebuild([])  # nothing new since: nothing added twice
+    assert len(m.tracks.points) == n
+
+
+def test_bumps_of_earlier_goals_are_dear_not_walls(office):
+    """Contacts marked on the way to earlier goals (a ring of them around the robot, as
+    misplaced marks can seal a doorway) make the grid dear: goals beyond them are still
+    drawn and planned to. As walls (the goal being tried treats its own bumps so), they
+    would cut the robot off."""
+    m, _, _ = office
+    est = m.body.est.pose[:2]
+    a = np.linspace(0, 2 * np.pi, 60, endpoint=False)
+    m.bumps = list(est + 0.6 * np.c_[np.cos(a), np.sin(a)])
+    try:
+        goals, _, grid = m.choose_goals()
+        far = goals[np.hypot(*(goals[:, :2] - est).T) > 0.8]
+        assert len(far)
+        assert plan_path(m._from_here(grid), est, far[0, :2], max_cost=m.config.max_path_cost) is not None
+        walls = m._with_bumps(grid, m.bumps)
+        assert plan_path(m._from_here(walls), est, far[0, :2], max_cost=m.config.max_path_cost) is None
+    finally:
+        m.bumps = []

@@ -209,3 +209,17 @@ def test_points_across_circles_are_those_two_circles_saw():
     ids = {tuple(np.round(p.xyz, 3)): pid for pid, p in rec.points3D.items()}
     across = points_across_circles(rec, np.array([0, 0, 1, 1]))
     assert across == {ids[(0.3, 0.0, 0.1)], ids[(0.5, 0.2, -0.1)]}
+
+
+def test_photos_sfm_posed_off_the_mounts_height_stay_out_of_the_map():
+    """A robot on a flat floor takes every photo at its camera's height: SfM poses 0.5 m low
+    (apartment 3 had seven) are wrong registrations; a few centimetres are SfM's noise."""
+    from ibr.camera import Camera
+    from robot.mission.map_building import MapConfig, at_mount_height
+
+    K = np.array([[100.0, 0, 80], [0, 100.0, 60], [0, 0, 1]])
+    cams = {i: Camera(K, 160, 120, np.linalg.inv(np.block([[np.eye(3), np.array([[0.0], [0.0], [z]])],
+                                                            [np.zeros((1, 3)), np.ones((1, 1))]])))
+            for i, z in enumerate([0.40, 0.43, -0.10, 0.38, 0.90])}
+    kept = at_mount_height(cams, 0.4, MapConfig().max_camera_height_err_m)
+    assert sorted(kept) == [0, 1, 3]

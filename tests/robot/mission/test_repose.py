@@ -123,3 +123,38 @@ def test_a_mission_reposes_the_photos_its_map_lacks():
     assert len(mission.tracks.points) > tracks_before
     mission.repose()  # again, from the kept features and matches: what joined stays
     assert all(photos[i].camera is not None for i in posed)
+
+
+def test_a_gap_of_unposed_photos_does_not_cut_a_run_from_the_map():
+    """A walk of two turns and drives between photos; SfM left photos 12-15 unposed (2-3 m
+    driven across the gap) and put 30-39 1 m off. The odometry's heading errs by 15 % of
+    each turn (as the simulated robot's: 0.14 x the turn), so its steps across the gap
+    miss by most of a metre; the compass-aided dead reckoning (2 degrees, drives 2 % long)
+    measures them. With it every photo SfM posed right is kept, across the gap; the wrong
+    run is left out either way, and the odometry alone loses the photos after the gap."""
+    rng = np.random.default_rng(3)
+    n = 40
+    true, odo, dr = [np.zeros(3)], [np.array([0.5, -0.2, 0.3])], [np.zeros(3)]
+    for _ in range(n - 1):
+        t, o, d = true[-1].copy(), odo[-1].copy(), dr[-1].copy()
+        for _ in range(2):
+            turn, leg = rng.uniform(-2.5, 2.5), rng.uniform(0.2, 0.4)
+            t[2] += turn
+            t[:2] += leg * np.array([np.cos(t[2]), np.sin(t[2])])
+            o[2] += turn * (1 + rng.normal(0, 0.15))
+            o[:2] += leg * np.array([np.cos(o[2]), np.sin(o[2])])
+            d[2] = t[2] + rng.normal(0, np.radians(2))
+            d[:2] += 1.02 * leg * np.array([np.cos(d[2]), np.sin(d[2])])
+        true.append(t)
+        odo.append(o)
+        dr.append(d)
+    true, odo, dr = np.array(true), np.array(odo), np.array(dr)
+    sfm = true + np.c_[rng.normal(0, 0.02, (n, 2)), np.zeros(n)]
+    sfm[30:, :2] += [1.0, 0.4]
+    gap = {12, 13, 14, 15}
+    poses = {i: sfm[i] for i in range(n) if i not in gap}
+    agree = {0: True, 4: True, 8: True}
+    right = set(range(30)) - gap
+    with_dr = odometry_held(poses, odo, agree, ReposeConfig(), dr)
+    assert with_dr == right
+    assert odometry_held(poses, odo, agree, ReposeConfig()) < with_dr
