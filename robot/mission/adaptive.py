@@ -126,11 +126,11 @@ class AdaptiveConfig:
     """A PnP fix whose camera is tilted out of the map's level (`tilt_of_camera`: the robot
     stands level on a flat floor, and so did its map photos) by more than the angle that
     moves the image centre this many pixels, atan(px / focal length), is rejected. An
-    image-space limit, 1.5 times the RANSAC inlier threshold: on apartment 1, fixes right
-    to 5 cm tilted at most 1.0 degree (41 fixes; 6 px at its focal length of 277 px is 1.2
-    degrees), while the wrong ones (0.15-2.8 m off), which passed the height and jump
-    checks, tilted 1.5-3.9 degrees; held out, on apartment 7, 23 right fixes tilted at most
-    1.1 degrees and 4 wrong ones (0.2-5.7 m off) 4.6-20 degrees."""
+    image-space limit, 1.5 times the RANSAC inlier threshold: of apartment 1's 42 PnP poses,
+    the 34 right to 5 cm tilted at most 1.0 degree (6 px at its focal length of 277 px is
+    1.2 degrees), while the 8 off by 0.06-2.8 m, which passed the height and jump checks,
+    tilted 1.5-3.9 degrees; held out, on apartment 7, 23 right fixes tilted at most 1.1
+    degrees and 4 wrong ones (0.2-5.7 m off) 4.6-20 degrees."""
     grid: NavGridConfig = field(default_factory=lambda: NavGridConfig(z_floor_margin=0.08, z_max=1.2))
     """Navigation grid (KDE of above-ground points)."""
     view_quality: ViewQualityConfig = field(default_factory=ViewQualityConfig)
