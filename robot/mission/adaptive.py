@@ -54,7 +54,7 @@ from ibr.proxy.triangulation import TriangulationConfig, sift_features
 from localization.feature_localizer import FeatureLocalizerConfig, FeatureMap
 from localization.motion_models import wrap_angle
 from robot.mission.localizer import FilteredBody, MissionFilterConfig, MissionLocalizer
-from robot.mission.map_building import MapConfig, RobotMap, Tracks, extend_map, stereo_tracks
+from robot.mission.map_building import MapConfig, RobotMap, Tracks, at_mount_height, extend_map, stereo_tracks
 from robot.mission.observer import MissionObserver, MissionPhoto
 from robot.mission.random_stage import Body
 from robot.mission.repose import ReposeConfig, odometry_held, repose_photos
@@ -197,11 +197,10 @@ class AdaptiveMission:
         self._sonar: SonarGrid | None = None  # the ultrasonic's grid of the last goal choice
         self.n_candidates = self.n_frontier_goals = 0  # of the last goal choice
         self.give_up_reason = ""
-        self.tracks = stereo_tracks(self._map_cameras(), self._feats, config.localizer.triangulation)
-        looked = set(self._track_cameras()) - set(self._map_cameras())
-        if looked:  # a resumed mission: the fixed localise photos' tracks too
-            self.tracks = self.tracks + stereo_tracks(self._track_cameras(), self._feats,
-                                                      config.localizer.triangulation, only=looked)
+        mapped, tracked = self._map_cameras(), self._track_cameras()
+        self.tracks = stereo_tracks(mapped, self._feats, config.localizer.triangulation)
+        if looked := set(tracked) - set(mapped):  # a resumed mission: the fixed localise photos' tracks too
+            self.tracks = self.tracks + stereo_tracks(tracked, self._feats, config.localizer.triangulation, only=looked)
         self._tracked_to = len(photos)
         """Photos before this index are in the tracks if they ever will be (`rebuild`)."""
         self.fmap = self._feature_map()
@@ -232,38 +231,41 @@ class AdaptiveMission:
         """SIFT + PnP map of the tracks so far (built once, then grown by `rebuild` and `repose`)."""
         return FeatureMap(self.tracks.points, self.tracks.descriptors, self.tracks.owner, self.config.localizer)
 
+    def _world_from_robot(self, cam_from_world: np.ndarray) -> np.ndarray:
+        """(4, 4) pose of the robot of a camera pose (the mount undone), world frame."""
+        return np.linalg.inv(cam_from_world) @ self.robot.cam_from_robot
+
     def pose_of_camera(self, cam_from_world: np.ndarray) -> np.ndarray:
         """SE(2) robot pose of a camera pose (the mount undone)."""
-        world_from_robot = np.linalg.inv(cam_from_world) @ self.robot.cam_from_robot
+        world_from_robot = self._world_from_robot(cam_from_world)
         return np.array([world_from_robot[0, 3], world_from_robot[1, 3],
                          np.arctan2(world_from_robot[1, 0], world_from_robot[0, 0])])
-
-    def _robot_up(self, cam_from_world: np.ndarray) -> np.ndarray:
-        """The robot's up axis (3,) at a camera pose (the mount undone), world frame."""
-        return (np.linalg.inv(cam_from_world) @ self.robot.cam_from_robot)[:3, 2]
 
     def tilt_of_camera(self, cam_from_world: np.ndarray) -> float:
         """Angle (rad) between the robot's up axis at a camera pose and the map's level: the
         median up axis of the map's photos, each taken standing level (a map whose floor
         fit leaves it tilted by a degree, as apartment 0's was by 1.3, tilts its right
         fixes alike). 0 for a camera where the robot stands level in the map."""
-        ups = np.array([self._robot_up(c.cam_from_world) for c in self._map_cameras().values()]).reshape(-1, 3)
+        ups = np.array([self._world_from_robot(c.cam_from_world)[:3, 2]
+                        for c in self._map_cameras().values()]).reshape(-1, 3)
         level = np.median(ups, axis=0) if len(ups) else np.array([0.0, 0.0, 1.0])
         level /= np.linalg.norm(level)
-        return float(np.arccos(np.clip(self._robot_up(cam_from_world) @ level, -1.0, 1.0)))
+        return float(np.arccos(np.clip(self._world_from_robot(cam_from_world)[:3, 2] @ level, -1.0, 1.0)))
 
     def localise_photo(self, photo: Photo):
         """PnP result (`PnPResult`) of a photo against the map if it passes the sanity
         checks (camera height; level, `max_fix_tilt_px`; within `max_fix_jump_m` of the
-        estimate, or 3 spreads), else None."""
+        estimate, or 3 spreads), else None. The tilt, which reads every map photo, only
+        for a fix that passed the others."""
         c = self.config
         res = self.fmap.localize(photo.image, self.template) if len(self.fmap) >= c.localizer.min_inliers else None
         if res is not None:
             centre = np.linalg.inv(res.cam_from_world)[:3, 3]
             pose = self.pose_of_camera(res.cam_from_world)
-            level = self.tilt_of_camera(res.cam_from_world) <= np.arctan(c.max_fix_tilt_px / self.template.K[0, 0])
-            if (abs(centre[2] - self.cam_height) < c.max_fix_height_err_m and level
-                    and np.hypot(*(pose[:2] - self.body.est.pose[:2])) < max(c.max_fix_jump_m, 3 * self._spread())):
+            max_tilt = np.arctan(c.max_fix_tilt_px / self.template.K[0, 0])
+            if (abs(centre[2] - self.cam_height) < c.max_fix_height_err_m
+                    and np.hypot(*(pose[:2] - self.body.est.pose[:2])) < max(c.max_fix_jump_m, 3 * self._spread())
+                    and self.tilt_of_camera(res.cam_from_world) <= max_tilt):
                 self.fixes += 1
                 return res
         self.failed += 1
@@ -669,7 +671,7 @@ class AdaptiveMission:
             log.info(f"re-posing by SfM: the map is unchanged: {found}")
             return 0
         cams, support, err = found
-        upright = {i: cam for i, cam in cams.items() if abs(cam.center[2] - self.cam_height) < c.max_fix_height_err_m}
+        upright = at_mount_height(cams, self.cam_height, c.max_fix_height_err_m)
         held = self._odometry_held(upright, known)
         loose = [i for i in upright if i not in held and i not in known]
         if loose:

@@ -354,7 +354,7 @@ def map_from_models(recs: list, database: Path, K: np.ndarray, size_hw: tuple[in
 def at_mount_height(cameras: dict[int, Camera], height_m: float, tol_m: float) -> dict[int, Camera]:
     """The cameras {photo: Camera, floor frame} whose centres lie within `tol_m` of the
     mount's `height_m` above the floor (m): where a robot on a flat floor can have taken them."""
-    return {i: c for i, c in cameras.items() if abs(c.center[2] - height_m) <= tol_m}
+    return {i: c for i, c in cameras.items() if abs(c.center[2] - height_m) < tol_m}
 
 
 class _Rig:
