@@ -21,10 +21,13 @@ class CompassDeadReckoning:
 
     pose: np.ndarray
 
-    def update(self, odom_before: np.ndarray, odom_after: np.ndarray, compass_rad: float) -> np.ndarray:
+    def update(self, odom_before: np.ndarray, odom_after: np.ndarray, compass_rad: float,
+               in_place: bool = False) -> np.ndarray:
         """Advance by the motion between two odometry poses, along the compass heading
-        (rad); returns the new estimate (3,)."""
+        (rad); returns the new estimate (3,). `in_place`: the robot was commanded to turn in
+        place, so it stays where it was (`motion_models.turn_in_place`)."""
         _, trans, _ = odometry_decomposition(odom_before, odom_after)
+        trans = 0.0 if in_place else trans
         self.pose = np.array([self.pose[0] + trans * np.cos(compass_rad),
                               self.pose[1] + trans * np.sin(compass_rad), compass_rad])
         return self.pose.copy()

@@ -111,7 +111,8 @@ def evaluate_held_out(scene: Scene, method: str, trials: int, spread_m: float, s
     feats = None
     if method != "pf":
         log.info(f"SIFT features of {len(scene)} photos")
-        feats = [sift_features(v.image, config.features.triangulation.n_features) for v in scene.views]
+        tri = config.features.triangulation
+        feats = [sift_features(v.image, tri.n_features, tri.contrast_threshold) for v in scene.views]
     localizers: dict[int, SceneLocalizer] = {}
     rows = []
     for i in progress(range(trials), desc="queries", logger=log):

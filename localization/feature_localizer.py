@@ -127,7 +127,8 @@ class FeatureMap:
                    exclude: tuple[str, ...] | list[str] = ()) -> "FeatureMap":
         """Map of `scene`'s posed photos, leaving out the views named in `exclude`."""
         views = [v for v in scene.views if v.name not in set(exclude)]
-        feats = [sift_features(v.image, config.triangulation.n_features) for v in views]
+        feats = [sift_features(v.image, config.triangulation.n_features, config.triangulation.contrast_threshold)
+                 for v in views]
         return cls.from_features([v.camera for v in views], feats, config)
 
     @classmethod
@@ -160,7 +161,7 @@ class FeatureMap:
     def localize(self, image: np.ndarray, camera: Camera, refine_focal: bool = False) -> PnPResult | None:
         """Pose of the camera that took `image` ((H, W, 3) uint8 RGB), with the intrinsics and
         size of `camera` (its pose is ignored). None when fewer than `min_inliers` inliers."""
-        feats = sift_features(image, self.config.query_features)
+        feats = sift_features(image, self.config.query_features, self.config.triangulation.contrast_threshold)
         return self.localize_features(feats, camera, refine_focal)
 
     def localize_features(self, feats: Features, camera: Camera, refine_focal: bool = False

@@ -97,8 +97,8 @@ class SceneLocalizer:
         self.scene, self.method, self.config = scene, method, config
         self.feature_map = self.model = None
         if method in ("pnp", "hybrid"):
-            n = config.features.triangulation.n_features
-            feats = features or [sift_features(v.image, n) for v in scene.views]
+            tri = config.features.triangulation
+            feats = features or [sift_features(v.image, tri.n_features, tri.contrast_threshold) for v in scene.views]
             self.feature_map = FeatureMap.from_features(scene.cameras, feats, config.features)
         if method in ("pf", "hybrid"):
             self.model = self._render_model(ctx)

@@ -37,6 +37,15 @@ def odometry_decomposition(pose_a: np.ndarray, pose_b: np.ndarray) -> np.ndarray
     return np.array([float(rot1), float(trans), float(rot2)])
 
 
+def turn_in_place(pose_a: np.ndarray, pose_b: np.ndarray) -> np.ndarray:
+    """(rot, 0, 0): the motion of a commanded turn in place between odometry poses pose_a and
+    pose_b, the heading change alone. The translation the odometry reads during such a turn
+    is wheel slip (Thrun's trans-from-rot term, alpha4), not a distance driven: a
+    differential drive turning in place keeps its centre, so the reading carries no
+    information about where the robot went and is left to the motion noise."""
+    return np.array([float(wrap_angle(pose_b[2] - pose_a[2])), 0.0, 0.0])
+
+
 def apply_odometry(poses: np.ndarray, u: np.ndarray) -> np.ndarray:
     """Compose SE(2) poses (N, 3) with motions u = (rot1, trans, rot2), (3,) or (N, 3)."""
     poses = np.atleast_2d(poses).astype(np.float64)

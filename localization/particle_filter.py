@@ -33,8 +33,8 @@ import shapely
 from filterpy.monte_carlo import stratified_resample, systematic_resample
 from scipy.stats import norm
 
-from localization.motion_models import (sample_motion_model_odometry, sample_motion_model_random_walk,
-                                        wrap_angle)
+from localization.motion_models import (apply_odometry, sample_motion_model_odometry, sample_motion_model_random_walk,
+                                        sample_odometry_noise, turn_in_place, wrap_angle)
 
 
 @dataclass(frozen=True)
@@ -154,8 +154,15 @@ class ParticleFilter:
         self.log_w = np.full(len(particles), -np.log(len(particles)))
 
     # --- the filter step ----------------------------------------------------------
-    def predict(self, odom_before: np.ndarray, odom_after: np.ndarray) -> None:
-        """Move every particle by the odometry motion, with Thrun's noise model."""
+    def predict(self, odom_before: np.ndarray, odom_after: np.ndarray, in_place: bool = False) -> None:
+        """Move every particle by the odometry motion, with Thrun's noise model; `in_place`:
+        the robot was commanded to turn in place, so only the odometry's heading change
+        moves the particles (`turn_in_place`), its translation is noise."""
+        if in_place:
+            u = turn_in_place(odom_before, odom_after)
+            self.particles = apply_odometry(self.particles, sample_odometry_noise(
+                u, self.config.alphas, len(self.particles), self.rng))
+            return
         self.particles = sample_motion_model_odometry(self.particles, odom_before, odom_after,
                                                       self.config.alphas, self.rng)
 

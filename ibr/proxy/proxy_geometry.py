@@ -97,7 +97,8 @@ def scene_key(scene: Scene, cfg: ProxyConfig) -> str:
 
 def triangulated_points(scene: Scene, cfg: ProxyConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Cleaned points (N, 3), colours (N, 3) uint8 and oriented normals (N, 3) of the scene."""
-    feats = [sift_features(v.image, cfg.triangulation.n_features) for v in scene.views]
+    feats = [sift_features(v.image, cfg.triangulation.n_features, cfg.triangulation.contrast_threshold)
+             for v in scene.views]
     tri = triangulate_views(scene.cameras, feats, cfg.triangulation)
     if len(tri.points) < MIN_POINTS:
         raise MeshingError(f"scene {scene.name!r}: only {len(tri.points)} points triangulated from its "

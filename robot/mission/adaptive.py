@@ -209,7 +209,8 @@ class AdaptiveMission:
     def _feats(self, i: int):
         """SIFT features of photo i (computed once per mission)."""
         if i not in self._features:
-            self._features[i] = sift_features(self.photos[i].photo.image, self.config.localizer.triangulation.n_features)
+            tri = self.config.localizer.triangulation
+            self._features[i] = sift_features(self.photos[i].photo.image, tri.n_features, tri.contrast_threshold)
         return self._features[i]
 
     def _model_cameras(self) -> dict[int, Camera]:

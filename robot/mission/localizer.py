@@ -4,7 +4,10 @@ vision fixes, so path following consumes a filter's estimate, never the simulato
 - Prediction: every move of the robot moves the particles by the odometry with Thrun's
   sample_motion_model_odometry (Probabilistic Robotics, Table 5.6, alpha1..4;
   `localization.particle_filter.ParticleFilter.predict`), then weights them by the compass
-  heading (Gaussian, `compass_sigma_rad`).
+  heading (Gaussian, `compass_sigma_rad`). A commanded turn in place moves them by the
+  odometry's heading change alone (`motion_models.turn_in_place`): the translation the
+  odometry reads while the robot turns on the spot is slip, and following it carried the
+  estimate off with it.
 - Measurement at waypoints: the SIFT + RANSAC PnP fix of a photo against the map
   (`localization.feature_localizer`) as a Mixture-MCL step (Thrun, Fox, Burgard & Dellaert,
   "Robust Monte Carlo localization for mobile robots", 2001; the same idea as
@@ -118,10 +121,13 @@ class MissionLocalizer:
         return self.spread_m > self.config.relocalise_std_m
 
     # --- the filter steps -------------------------------------------------------------
-    def predict(self, odom_before: np.ndarray, odom_after: np.ndarray, compass_rad: float) -> None:
-        """A move: odometry prediction, then the compass heading likelihood."""
-        self.dead_reckoning.update(odom_before, odom_after, compass_rad)
-        self.pf.predict(odom_before, odom_after)
+    def predict(self, odom_before: np.ndarray, odom_after: np.ndarray, compass_rad: float,
+                in_place: bool = False) -> None:
+        """A move: odometry prediction, then the compass heading likelihood. `in_place`: a
+        commanded turn in place, whose odometry translation is slip, not motion
+        (`motion_models.turn_in_place`)."""
+        self.dead_reckoning.update(odom_before, odom_after, compass_rad, in_place)
+        self.pf.predict(odom_before, odom_after, in_place)
         if self.config.compass_sigma_rad > 0:
             d = wrap_angle(self.pf.particles[:, 2] - compass_rad)
             self.pf.update(-0.5 * (d / self.config.compass_sigma_rad) ** 2)
@@ -194,7 +200,7 @@ class FilteredBody(Body):
         before = self.robot.odometry()
         motion = self.robot.turn(turn) if turn else self.robot.drive(drive)
         after = self.robot.odometry()
-        self.est.predict(before, after, self.robot.compass())
+        self.est.predict(before, after, self.robot.compass(), in_place=bool(turn))
         self.path_m += float(np.hypot(*(after[:2] - before[:2])))
         self.bumps += motion.blocked
         return motion

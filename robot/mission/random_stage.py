@@ -69,7 +69,7 @@ class Body:
         before = self.robot.odometry()
         motion = self.robot.turn(turn) if turn else self.robot.drive(drive)
         after = self.robot.odometry()
-        self.est.update(before, after, self.robot.compass())
+        self.est.update(before, after, self.robot.compass(), in_place=bool(turn))
         self.path_m += float(np.hypot(*(after[:2] - before[:2])))
         self.bumps += motion.blocked
         return motion
