@@ -79,9 +79,13 @@ def _truth_report(world, robot, result) -> dict:
     truth = true_poses(robot.truth)
     loc = localisation_errors(result.photos, truth)
     visited, rooms = rooms_visited(world, result.model_photos, truth)
+    model = None if loc is None else loc["model"]
     return {"localization_error_m": None if loc is None else {k: loc[k] for k in ("median", "p95", "max", "photos")},
             "heading_error_deg": None if loc is None else {"median": loc["heading_median_deg"],
                                                            "p95": loc["heading_p95_deg"]},
+            "model_photos_error": None if model is None else {
+                "position_m": {k: model[k] for k in ("median", "p95", "max", "photos")},
+                "heading_deg": {"median": model["heading_median_deg"], "p95": model["heading_p95_deg"]}},
             "map_scale_error": map_scale_error(result.robot_map, truth, robot.cam_from_robot, result.photos),
             "rooms_visited": visited, "rooms": rooms}
 

@@ -1,0 +1,31 @@
+"""`robot.mission.evaluation.localisation_errors`: the estimate at the adaptive stage's
+photos against known true poses, over all of them and over its model (goal) photos."""
+
+import numpy as np
+
+from robot.mission.evaluation import localisation_errors
+from robot.mission.observer import MissionPhoto
+from robot.protocol import Photo
+
+
+def mission_photo(index: int, stage: str, estimate) -> MissionPhoto:
+    photo = Photo(np.zeros((2, 2, 3), np.uint8), float(index), np.zeros(3), 0.0, 1.0, index)
+    return MissionPhoto(photo, np.asarray(estimate, float), stage)
+
+
+def test_model_photos_are_reported_apart_from_the_localisation_looks():
+    truth = {i: np.array([float(i), 0.0, 0.0]) for i in range(7)}
+    photos = [mission_photo(0, "random", [5.0, 0.0, 0.0]),  # the random stage is not counted
+              mission_photo(1, "goal", [1.03, 0.04, 0.0]),  # 5 cm off
+              mission_photo(2, "goal", [2.0, 0.01, np.radians(2.0)]),  # 1 cm, 2 degrees
+              mission_photo(3, "localise", [3.5, 0.0, 0.0]),  # 50 cm off
+              mission_photo(4, "localise", [4.3, 0.0, 0.0]),  # 30 cm
+              mission_photo(5, "goal", [5.0, 0.0, np.radians(-1.0)]),  # exact, 1 degree
+              mission_photo(6, "localise", [6.0, 0.2, 0.0])]  # 20 cm
+    err = localisation_errors(photos, truth)
+    assert err["photos"] == 6 and np.isclose(err["median"], 0.125) and np.isclose(err["max"], 0.5)
+    model = err["model"]
+    assert model["photos"] == 3 and np.isclose(model["median"], 0.01) and np.isclose(model["max"], 0.05)
+    assert np.isclose(model["heading_median_deg"], 1.0)
+    assert localisation_errors(photos[:1], truth) is None  # no adaptive photo
+    assert localisation_errors(photos[3:5], truth)["model"] is None  # no goal photo
