@@ -18,7 +18,9 @@ photos of a circle were taken from one robot position. So:
   reckoning of the circles' centres (the first circle stands at the known start);
 - `complete_circles` poses a photo no model registered from a posed photo of its own
   circle: the rotation between the two from their matched features (a pure rotation: the
-  bearings' Procrustes fit), the position from the circle's centre.
+  bearings' Procrustes fit), the turn divided by the circle's `turn_gains` (the camera's
+  swing about the axle reads as 2-5 % more turn; the compass measures how much), the
+  position from the circle's centre.
 
 Frames: world metres, z up, floor z = 0; levelled model frames: z along the cameras' up.
 """
@@ -90,6 +92,9 @@ class CircleConfig:
     """Fewest feature matches to turn a photo by (COLMAP's `min_num_matches`)."""
     max_angle_px: float = 2.0
     """A match further than this from the fitted rotation (pixels) is an outlier."""
+    max_gain_sigma: float = 0.01
+    """`turn_gains` corrects a circle only where its slope's standard error is within this
+    (a ratio): a chain's gain matters at 1 % and more (0.1 degree per 10 degree step)."""
 
 
 @dataclass
@@ -431,17 +436,81 @@ def pure_rotation(xy_i: np.ndarray, xy_j: np.ndarray, K: np.ndarray, config: Cir
     return R if ok.sum() >= config.min_matches else None
 
 
+def _yaw(world_from_cam: np.ndarray) -> float:
+    """Heading (rad) of a camera's optical axis in the world's xy plane."""
+    return float(np.arctan2(world_from_cam[1, 2], world_from_cam[0, 2]))
+
+
+def _turn(world_from_cam_j: np.ndarray, R: np.ndarray) -> float:
+    """The turn (rad) from camera j to camera i, cam_i_from_cam_j rotation `R`, about the world's up."""
+    return float(wrap_angle(_yaw(world_from_cam_j @ np.block([[R.T, np.zeros((3, 1))], [np.zeros((1, 3)), 1.0]]))
+                            - _yaw(world_from_cam_j)))
+
+
+def turn_gains(circle: np.ndarray, heading: np.ndarray, matches, K: np.ndarray, reference: np.ndarray,
+               config: CircleConfig = CircleConfig()) -> dict[int, float]:
+    """{circle: how far `pure_rotation` over-turns there}: the slope of the compass `heading`
+    (N,) rad against the turns it chains from photo to photo of the circle (a least-squares
+    line per run of matched neighbours, one slope for the circle). The camera sits ahead of
+    the axle, so a turn in place swings it sideways too, and a rotation fitted to the image
+    takes that parallax for more turn: by the mount over the scene's depth (5 cm at 1-2 m,
+    about 3 %; chained over a gap of 27 photos in apartment 2's random stage it put the last
+    one 8 degrees off). SfM's own poses of a circle over-turned alike (+0.2-0.3 degrees per
+    step, apartments 7 and 9: its cameras are only the mount apart), so the compass, noisy
+    but unbiased, is what measures it; over a circle's 360 degrees its 2 degrees per reading
+    leave the slope ~0.3 % uncertain. One gain per circle, while the parallax follows the
+    depth in each direction: a chain across a far wall is over-corrected (apartment 9:
+    -0.25 degrees per step over 25 photos, +0.25 before). A circle whose slope is less sure than
+    `max_gain_sigma` keeps 1 (no correction). `reference` (4, 4) world_from_cam of any posed
+    photo: the mount's tilt, to read a rotation as a turn about the world's up."""
+    gains = {}
+    for k in np.unique(circle):
+        ids = np.flatnonzero(circle == k)
+        points = []  # (chained turn, compass heading, run) of each photo on a run
+        r, at = 0, 0.0
+        for a, b in zip(ids, ids[1:]):
+            R = pure_rotation(*matches(int(b), int(a)), K, config)
+            if R is None:
+                r, at = r + 1, 0.0  # a new run: its own offset
+                continue
+            if not points or points[-1][2] != r:
+                points.append((at, heading[a], r))
+            at += _turn(reference, R)
+            points.append((at, heading[b], r))
+        x, y, run = np.array(points).reshape(-1, 3).T
+        gains[int(k)] = _slope(x, y, run, config.max_gain_sigma)
+    return gains
+
+
+def _slope(x: np.ndarray, y: np.ndarray, run: np.ndarray, max_sigma: float) -> float:
+    """The slope g of y ~ g x + c_run (common g, an offset per run; y unwrapped around x),
+    or 1 when fewer than 6 points or its standard error exceeds `max_sigma`."""
+    if len(x) < 6:
+        return 1.0
+    y = x + wrap_angle(y - x - np.median(wrap_angle(y - x)))
+    runs = np.unique(run)
+    A = np.c_[x, (run[:, None] == runs[None, :]).astype(float)]
+    if np.linalg.matrix_rank(A) < A.shape[1] or len(x) <= A.shape[1]:
+        return 1.0
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    resid = y - A @ coef
+    cov = np.linalg.inv(A.T @ A) * (resid @ resid) / (len(x) - A.shape[1])
+    return float(1.0 / coef[0]) if np.sqrt(cov[0, 0]) <= max_sigma and coef[0] > 0 else 1.0
+
+
 def complete_circles(world_from_cam: dict[int, np.ndarray], circle: np.ndarray, centres: dict[int, np.ndarray],
                      heading: np.ndarray, matches, K: np.ndarray, mount_xy: np.ndarray, mount_yaw: float,
                      camera_height_m: float, config: CircleConfig = CircleConfig()) -> dict[int, np.ndarray]:
     """world_from_cam (4x4) of the photos of the placed circles (`centres` {circle: robot
     position (2,) m}) that no model posed: turned from a posed photo of the same circle by
     the rotation of their matched features (`pure_rotation`; `matches(i, j)` gives the
-    (M, 2) pixel pairs of photos i and j), nearest in the circle first, and placed `mount_xy`
-    from the circle's centre at the camera's height. A photo whose rotation matches no posed
+    (M, 2) pixel pairs of photos i and j) about the world's up, divided by the circle's
+    `turn_gains` (the mount's parallax, measured against the compass), nearest in the circle
+    first, and placed `mount_xy` from the circle's centre at the camera's height. A photo whose rotation matches no posed
     neighbour, or turns it more than 4 compass sigmas off its compass `heading`, stays out.
     Photos posed here are themselves neighbours for the rest of their circle."""
     posed = dict(world_from_cam)
+    gains = turn_gains(circle, heading, matches, K, next(iter(posed.values())), config) if posed else {}
     added: dict[int, np.ndarray] = {}
     grew = True
     while grew:
@@ -455,15 +524,19 @@ def complete_circles(world_from_cam: dict[int, np.ndarray], circle: np.ndarray, 
                 R = pure_rotation(*matches(i, j), K, config)
                 if R is None:
                     continue
-                R_wi = posed[j][:3, :3] @ R.T
-                yaw = float(np.arctan2(R_wi[1, 2], R_wi[0, 2]))
+                yaw = _yaw(posed[j]) + _turn(posed[j], R) / gains[int(circle[i])]
                 if abs(wrap_angle(yaw - heading[i])) > 4 * config.compass_sigma_rad:
                     continue
                 T = np.eye(4)
-                T[:3, :3] = R_wi
+                T[:3, :3] = _rot_z(yaw - _yaw(posed[j])) @ posed[j][:3, :3]
                 T[:2, 3] = centres[int(circle[i])] + rot2d(yaw - mount_yaw) @ mount_xy
                 T[2, 3] = camera_height_m
                 posed[i] = added[i] = T
                 grew = True
                 break
     return added
+
+
+def _rot_z(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
