@@ -98,38 +98,6 @@ def test_a_circle_the_robot_came_back_to_does_not_scale_a_model():
     assert sorted(placed.models) == [0]
 
 
-def test_photos_are_turned_into_place_from_a_posed_neighbour_of_their_circle():
-    from ibr.camera import intrinsics_from_fov
-
-    rng = np.random.default_rng(1)
-    K = intrinsics_from_fov(60.0, 320, 240)
-    cam_from_robot = forward_camera_mount(0.4, MOUNT_XY[0])
-    poses = [np.r_[CENTRES[0], a] for a in np.radians(np.arange(0, 360, 10))]
-    cams = [robot_camera(p, K, (320, 240), cam_from_robot) for p in poses]
-    a = rng.uniform(0, 2 * np.pi, 3000)  # a textured room: points on walls 2-4 m away
-    r = rng.uniform(2, 4, 3000)
-    X = np.c_[r * np.cos(a), r * np.sin(a), rng.uniform(0, 2.4, 3000)]
-
-    def matches(i, j):
-        px = [c.project(X) for c in (cams[i], cams[j])]
-        seen = np.all([(p[1] > 0) & (p[0][:, 0] >= 0) & (p[0][:, 0] < 320) & (p[0][:, 1] >= 0) & (p[0][:, 1] < 240)
-                       for p in px], axis=0)
-        return px[0][0][seen] + rng.normal(0, 0.3, (seen.sum(), 2)), px[1][0][seen]
-
-    posed = {i: cams[i].world_from_cam for i in range(0, 36, 6)}
-    circle = np.zeros(36, int)
-    heading = np.radians(np.arange(0, 360, 10)) + rng.normal(0, np.radians(2), 36)
-    added = complete_circles(posed, circle, {0: CENTRES[0]}, heading, matches, K, MOUNT_XY, MOUNT_YAW, 0.4)
-    assert sorted(added) == sorted(set(range(36)) - set(posed))
-    for i, T in added.items():
-        assert np.linalg.norm(T[:3, 3] - cams[i].center) < 0.002
-        cos = (np.trace(T[:3, :3].T @ cams[i].world_from_cam[:3, :3]) - 1) / 2
-        # not quite a pure rotation: the camera swings 5 cm about the axle (0.1-0.3 degrees
-        # of parallax at 2-4 m per 10 degree step, chained over up to 3 steps here), still
-        # half the compass's noise (2 degrees) or better
-        assert np.degrees(np.arccos(np.clip(cos, -1, 1))) < 1.0
-
-
 def _circle_photos(rng, depth_m):
     """One circle of 36 photos 10 degrees apart at `CENTRES[0]` in a textured room whose
     walls are `depth_m` (lo, hi) away: K, the true cameras and a `matches(i, j)` of noisy
@@ -157,11 +125,27 @@ def _turn_error_deg(T, cam) -> float:
     return float(np.degrees(np.arccos(np.clip(cos, -1, 1))))
 
 
+def test_photos_are_turned_into_place_from_a_posed_neighbour_of_their_circle():
+    rng = np.random.default_rng(1)
+    K, cams, matches = _circle_photos(rng, (2.0, 4.0))  # a textured room: points on walls 2-4 m away
+    posed = {i: cams[i].world_from_cam for i in range(0, 36, 6)}
+    circle = np.zeros(36, int)
+    heading = np.radians(np.arange(0, 360, 10)) + rng.normal(0, np.radians(2), 36)
+    added = complete_circles(posed, circle, {0: CENTRES[0]}, heading, matches, K, MOUNT_XY, MOUNT_YAW, 0.4)
+    assert sorted(added) == sorted(set(range(36)) - set(posed))
+    for i, T in added.items():
+        assert np.linalg.norm(T[:3, 3] - cams[i].center) < 0.002
+        # not quite a pure rotation: the camera swings 5 cm about the axle (0.1-0.3 degrees
+        # of parallax at 2-4 m per 10 degree step, chained over up to 3 steps here), still
+        # half the compass's noise (2 degrees) or better
+        assert _turn_error_deg(T, cams[i]) < 1.0
+
+
 def test_a_long_gap_in_a_circle_is_turned_into_place_without_the_mount_parallax_piling_up():
     """Two posed sectors (SfM's models) and gaps of up to 15 photos between them, walls 1-2 m
     away: a rotation fitted to the image takes the camera's swing about the axle for 3-5 %
-    more turn, which piled up to 4.7 degrees (2.3 at the median) over the gaps; the circle's own posed
-    photos' turns against the compass measure that gain (`turn_gains`) and take it out."""
+    more turn, which piled up to 4.7 degrees (2.3 at the median) over the gaps; the circle's
+    chained turns against the compass measure that gain (`turn_gains`) and take it out."""
     from robot.mission.circles import turn_gains
 
     rng = np.random.default_rng(3)
