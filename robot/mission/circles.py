@@ -448,7 +448,7 @@ def _turn(world_from_cam_j: np.ndarray, R: np.ndarray) -> float:
 
 
 def turn_gains(circle: np.ndarray, heading: np.ndarray, matches, K: np.ndarray, reference: np.ndarray,
-               config: CircleConfig = CircleConfig()) -> dict[int, float]:
+               config: CircleConfig = CircleConfig(), circles=None) -> dict[int, float]:
     """{circle: how far `pure_rotation` over-turns there}: the slope of the compass `heading`
     (N,) rad against the turns it chains from photo to photo of the circle (a least-squares
     line per run of matched neighbours, one slope for the circle). The camera sits ahead of
@@ -462,9 +462,10 @@ def turn_gains(circle: np.ndarray, heading: np.ndarray, matches, K: np.ndarray, 
     depth in each direction: a chain across a far wall is over-corrected (apartment 9:
     -0.25 degrees per step over 25 photos, +0.25 before). A circle whose slope is less sure than
     `max_gain_sigma` keeps 1 (no correction). `reference` (4, 4) world_from_cam of any posed
-    photo: the mount's tilt, to read a rotation as a turn about the world's up."""
+    photo: the mount's tilt, to read a rotation as a turn about the world's up. `circles`:
+    the circles to measure (None: all)."""
     gains = {}
-    for k in np.unique(circle):
+    for k in np.unique(circle) if circles is None else circles:
         ids = np.flatnonzero(circle == k)
         points = []  # (chained turn, compass heading, run) of each photo on a run
         r, at = 0, 0.0
@@ -487,8 +488,12 @@ def _slope(x: np.ndarray, y: np.ndarray, run: np.ndarray, max_sigma: float) -> f
     or 1 when fewer than 6 points or its standard error exceeds `max_sigma`."""
     if len(x) < 6:
         return 1.0
-    y = x + wrap_angle(y - x - np.median(wrap_angle(y - x)))
     runs = np.unique(run)
+    y = y.copy()
+    for r in runs:  # each run's compass unwrapped around its own chain
+        on = run == r
+        d = wrap_angle(y[on] - x[on])
+        y[on] = x[on] + wrap_angle(d - np.median(d))
     A = np.c_[x, (run[:, None] == runs[None, :]).astype(float)]
     if np.linalg.matrix_rank(A) < A.shape[1] or len(x) <= A.shape[1]:
         return 1.0
@@ -506,11 +511,14 @@ def complete_circles(world_from_cam: dict[int, np.ndarray], circle: np.ndarray, 
     the rotation of their matched features (`pure_rotation`; `matches(i, j)` gives the
     (M, 2) pixel pairs of photos i and j) about the world's up, divided by the circle's
     `turn_gains` (the mount's parallax, measured against the compass), nearest in the circle
-    first, and placed `mount_xy` from the circle's centre at the camera's height. A photo whose rotation matches no posed
-    neighbour, or turns it more than 4 compass sigmas off its compass `heading`, stays out.
-    Photos posed here are themselves neighbours for the rest of their circle."""
+    first, and placed `mount_xy` from the circle's centre at the camera's height. A photo
+    whose rotation matches no posed neighbour, or turns it more than 4 compass sigmas off its
+    compass `heading`, stays out. Photos posed here are themselves neighbours for the rest of
+    their circle."""
     posed = dict(world_from_cam)
-    gains = turn_gains(circle, heading, matches, K, next(iter(posed.values())), config) if posed else {}
+    if not posed:
+        return {}
+    gains = turn_gains(circle, heading, matches, K, next(iter(posed.values())), config, list(centres))
     added: dict[int, np.ndarray] = {}
     grew = True
     while grew:
