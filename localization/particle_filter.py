@@ -33,8 +33,8 @@ import shapely
 from filterpy.monte_carlo import stratified_resample, systematic_resample
 from scipy.stats import norm
 
-from localization.motion_models import (apply_odometry, sample_motion_model_odometry, sample_motion_model_random_walk,
-                                        sample_odometry_noise, turn_in_place, wrap_angle)
+from localization.motion_models import (sample_motion_model_odometry, sample_motion_model_random_walk,
+                                        wrap_angle)
 
 
 @dataclass(frozen=True)
@@ -158,13 +158,8 @@ class ParticleFilter:
         """Move every particle by the odometry motion, with Thrun's noise model; `in_place`:
         the robot was commanded to turn in place, so only the odometry's heading change
         moves the particles (`turn_in_place`), its translation is noise."""
-        if in_place:
-            u = turn_in_place(odom_before, odom_after)
-            self.particles = apply_odometry(self.particles, sample_odometry_noise(
-                u, self.config.alphas, len(self.particles), self.rng))
-            return
         self.particles = sample_motion_model_odometry(self.particles, odom_before, odom_after,
-                                                      self.config.alphas, self.rng)
+                                                      self.config.alphas, self.rng, in_place)
 
     def predict_random_walk(self, std: np.ndarray) -> None:
         """Move every particle by a random walk with std (m, m, rad): no odometry."""

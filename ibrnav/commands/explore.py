@@ -80,14 +80,21 @@ def _truth_report(world, robot, result) -> dict:
     loc = localisation_errors(result.photos, truth)
     visited, rooms = rooms_visited(world, result.model_photos, truth)
     model = None if loc is None else loc["model"]
-    return {"localization_error_m": None if loc is None else {k: loc[k] for k in ("median", "p95", "max", "photos")},
-            "heading_error_deg": None if loc is None else {"median": loc["heading_median_deg"],
-                                                           "p95": loc["heading_p95_deg"]},
-            "model_photos_error": None if model is None else {
-                "position_m": {k: model[k] for k in ("median", "p95", "max", "photos")},
-                "heading_deg": {"median": model["heading_median_deg"], "p95": model["heading_p95_deg"]}},
+    return {"localization_error_m": _position_error(loc), "heading_error_deg": _heading_error(loc),
+            "model_photos_error": None if model is None else {"position_m": _position_error(model),
+                                                              "heading_deg": _heading_error(model)},
             "map_scale_error": map_scale_error(result.robot_map, truth, robot.cam_from_robot, result.photos),
             "rooms_visited": visited, "rooms": rooms}
+
+
+def _position_error(errors: dict | None) -> dict | None:
+    """{median, p95, max (m), photos} of a `localisation_errors` figure (None: none)."""
+    return None if errors is None else {k: errors[k] for k in ("median", "p95", "max", "photos")}
+
+
+def _heading_error(errors: dict | None) -> dict | None:
+    """{median, p95} (deg) of a `localisation_errors` figure (None: none)."""
+    return None if errors is None else {"median": errors["heading_median_deg"], "p95": errors["heading_p95_deg"]}
 
 
 def _eval_capture(world, robot, result, n_poses: int, seed: int) -> dict | None:

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
 
 from localization.motion_models import wrap_angle
 
@@ -437,14 +438,14 @@ def pure_rotation(xy_i: np.ndarray, xy_j: np.ndarray, K: np.ndarray, config: Cir
 
 
 def _yaw(world_from_cam: np.ndarray) -> float:
-    """Heading (rad) of a camera's optical axis in the world's xy plane."""
+    """Heading (rad) of a camera's optical axis in the world's xy plane (of its world_from_cam
+    (4, 4) or rotation (3, 3))."""
     return float(np.arctan2(world_from_cam[1, 2], world_from_cam[0, 2]))
 
 
 def _turn(world_from_cam_j: np.ndarray, R: np.ndarray) -> float:
     """The turn (rad) from camera j to camera i, cam_i_from_cam_j rotation `R`, about the world's up."""
-    return float(wrap_angle(_yaw(world_from_cam_j @ np.block([[R.T, np.zeros((3, 1))], [np.zeros((1, 3)), 1.0]]))
-                            - _yaw(world_from_cam_j)))
+    return float(wrap_angle(_yaw(world_from_cam_j[:3, :3] @ R.T) - _yaw(world_from_cam_j)))
 
 
 def turn_gains(circle: np.ndarray, heading: np.ndarray, matches, K: np.ndarray, reference: np.ndarray,
@@ -536,15 +537,10 @@ def complete_circles(world_from_cam: dict[int, np.ndarray], circle: np.ndarray, 
                 if abs(wrap_angle(yaw - heading[i])) > 4 * config.compass_sigma_rad:
                     continue
                 T = np.eye(4)
-                T[:3, :3] = _rot_z(yaw - _yaw(posed[j])) @ posed[j][:3, :3]
+                T[:3, :3] = Rotation.from_euler("z", yaw - _yaw(posed[j])).as_matrix() @ posed[j][:3, :3]
                 T[:2, 3] = centres[int(circle[i])] + rot2d(yaw - mount_yaw) @ mount_xy
                 T[2, 3] = camera_height_m
                 posed[i] = added[i] = T
                 grew = True
                 break
     return added
-
-
-def _rot_z(a: float) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
