@@ -13,8 +13,10 @@ was within 0.1-1.6 %).
 SfM of a random stage breaks into several models (one per sector of headings: a circle of
 photos is a pure rotation, and where a circle faces a bare wall nothing is triangulated);
 `map_from_models` places them together in the floor frame by the robot's circles (the
-floors, the compass and the dead reckoning from the known start; `robot.mission.circles`)
-and poses the circles' remaining photos. Without any floor the odometry gives the scale
+floors, the compass and the dead reckoning from the known start; `robot.mission.circles`),
+adjusts their photos and points on the robot's rig (each circle turned in place about one
+axle, `robot.mission.rig_adjustment`: SfM takes part of the mount's swing for turn) and
+poses the circles' remaining photos. Without any floor the odometry gives the scale
 (the simulated odometry is 14 % off per drive, so that map is 10-17 % off).
 
 `extend_map` adds photos whose poses were localised (PnP) later: their SIFT features are
@@ -44,6 +46,7 @@ from ibr.proxy.poisson import PoissonConfig, poisson_mesh
 from ibr.proxy.sfm import colmap_errors_only
 from ibr.proxy.triangulation import TriangulationConfig, pair_tracks
 from robot.mission.circles import CircleConfig, LevelledModel, circle_ids, complete_circles, place_models, rot2d
+from robot.mission.rig_adjustment import RigAdjustmentConfig, RigObservations, adjust_on_rig, turned
 
 
 log = logging.getLogger(__name__)
@@ -83,6 +86,9 @@ class MapConfig:
     fix's height (`AdaptiveConfig.max_fix_height_err_m`) is the same."""
     circles: CircleConfig = field(default_factory=CircleConfig)
     """How SfM's models are placed together and the circles completed (`robot.mission.circles`)."""
+    rig: RigAdjustmentConfig | None = field(default_factory=RigAdjustmentConfig)
+    """The placed photos and points adjusted on the robot's rig (`robot.mission.rig_adjustment`;
+    None: SfM's poses as placed)."""
     sonar: SonarConfig = field(default_factory=SonarConfig)
     """The ultrasonic's geometry (`sonar_scale`)."""
 
@@ -330,17 +336,22 @@ def map_from_models(recs: list, database: Path, K: np.ndarray, size_hw: tuple[in
         raise MapError(f"no SfM model holds 3 photos or more ({[r.num_reg_images() for r in recs]})")
     placement = place_models([m[0] for m in models], rig.circle, rig.heading, rig.estimates[:, :2],
                              rig.cam_xy, rig.driven_m, rig.mount_xy, rig.mount_yaw, config.circles)
-    cameras, parts = {}, []
+    cameras, parts, placed = {}, [], []
     for k, (s, a, t) in placement.models.items():
         rec, world_from_sfm = models[k][1], world_from_levelled(models[k][2], s, a, t, rig.height)
         cams = {int(i): Camera(K, w, h, transform_camera(models[k][3][int(i)], world_from_sfm).cam_from_world,
                                f"photo_{int(i):05d}") for i in placement.photos[k]}
         cams = at_mount_height(cams, rig.height, config.max_camera_height_err_m)
-        parts.append(_sfm_points(rec, world_from_sfm, cams))
+        placed.append((rec, world_from_sfm, cams))
         for i, c in cams.items():
             cameras.setdefault(i, c)
+    centres = placement.centres
+    if config.rig is not None:
+        cameras, centres, parts = _on_rig(placed, cameras, centres, rig, _Matches(database), K, (w, h), config.rig)
+    else:
+        parts = [_sfm_points(rec, world_from_sfm, cams) for rec, world_from_sfm, cams in placed]
     sfm_posed = len(cameras)
-    added = complete_circles({i: c.world_from_cam for i, c in cameras.items()}, rig.circle, placement.centres,
+    added = complete_circles({i: c.world_from_cam for i, c in cameras.items()}, rig.circle, centres,
                              rig.heading, _Matches(database), K, rig.mount_xy, rig.mount_yaw, rig.height,
                              config.circles)
     cameras.update({i: Camera(K, w, h, np.linalg.inv(T), f"photo_{i:05d}") for i, T in added.items()})
@@ -351,6 +362,103 @@ def map_from_models(recs: list, database: Path, K: np.ndarray, size_hw: tuple[in
     return _mesh_map(cameras, pts, cols, seen_from, config, registered=len(cameras))
 
 
+def _on_rig(placed: list, cameras: dict[int, Camera], centres: dict[int, np.ndarray], rig: "_Rig",
+            matches: "_Matches", K: np.ndarray, size_wh: tuple[int, int], config: RigAdjustmentConfig):
+    """The placed models' photos and points adjusted on the rig (`adjust_on_rig`), with the
+    photos of their circles that no model posed joining by their `matches`: `placed`
+    [(rec, world_from_sfm, {photo: Camera})], `cameras` {photo: Camera} (first model's pose
+    of each photo), `centres` {circle: robot position}. Returns the cameras (those of circles
+    without a centre as they were), the centres (turned with the placement onto the compass)
+    and the map's [(points, colours, seen_from)]."""
+    obs = rig_observations(placed, cameras, centres, rig, matches)
+    if len(obs.photo) == 0:
+        return cameras, centres, [_sfm_points(rec, T, cams) for rec, T, cams in placed]
+    fit = adjust_on_rig(obs, K, rig.cam_from_robot, config)
+    robot_from_cam = np.linalg.inv(rig.cam_from_robot)
+    xy = turned(obs.xy, fit.alpha, obs.pivot)
+    out = dict(cameras)
+    for n in np.flatnonzero(fit.posed):
+        world_from_robot = np.eye(4)
+        world_from_robot[:2, :2] = rot2d(fit.theta[n])
+        world_from_robot[:2, 3] = xy[n]
+        i = int(obs.photos[n])
+        out[i] = Camera(K, *size_wh, np.linalg.inv(world_from_robot @ robot_from_cam), f"photo_{i:05d}")
+    first = np.full(len(fit.points), -1)
+    first[obs.point[::-1]] = obs.photo[::-1]  # the first photo that saw each point (an SfM-posed one)
+    seen = np.array([out[int(obs.photos[f])].center for f in first[fit.kept]]).reshape(-1, 3)
+    log.info(f"initial map adjusted on the robot's rig: {int((~obs.joining).sum())} photos, "
+             f"{int(fit.posed[obs.joining].sum())} of {int(obs.joining.sum())} more joined by their matches, "
+             f"{int(fit.kept.sum())} of {len(fit.points)} points kept, median reprojection {fit.before_px:.2f} -> "
+             f"{fit.after_px:.2f} px, turned {np.degrees(fit.alpha):+.2f} deg onto the compass")
+    return out, {c: turned(p[None], fit.alpha, obs.pivot)[0] for c, p in centres.items()}, [
+        (fit.points[fit.kept], obs.colors[fit.kept], seen)]
+
+
+def rig_observations(placed: list, cameras: dict[int, Camera], centres: dict[int, np.ndarray],
+                     rig: "_Rig", matches: "_Matches") -> RigObservations:
+    """The observations of the placed models' points (world metres) in the `cameras` of the
+    photos of circles with a centre (`_on_rig`; a point seen by fewer than two of them is
+    left out), and in the other photos of those circles, through their `matches` with the
+    posed photos' observations (at most one per point and photo). A circle none of whose
+    photos a model posed is left out: its centre is the dead reckoning's alone."""
+    held = {int(rig.circle[i]) for i in cameras} & set(centres)  # a circle no model holds: dead reckoning only
+    circled = [i for i in range(len(rig.circle)) if int(rig.circle[i]) in held]
+    posed = [i for i in circled if i in cameras]
+    photos = np.array(posed + [i for i in circled if i not in cameras], int)
+    slot = {int(i): n for n, i in enumerate(photos)}
+    obs, keypoint_point, pts, cols = _model_observations(placed, slot)
+    joining = photos[len(posed):]
+    _joining_observations(obs, joining, posed, slot, keypoint_point, matches)
+    ph, pt = np.array(list(obs), int).reshape(-1, 2).T
+    uv = np.array(list(obs.values()), float).reshape(-1, 2)
+    heading = np.r_[[rig_heading(cameras[i], rig.cam_from_robot) for i in posed], rig.compass[joining]]
+    xy = np.array([centres[int(rig.circle[i])] for i in photos]).reshape(-1, 2)
+    return RigObservations(ph, pt, uv, photos, xy, heading, rig.compass[photos], np.array(pts).reshape(-1, 3),
+                           np.array(cols, np.uint8).reshape(-1, 3), np.asarray(centres[min(centres)], float),
+                           np.isin(photos, joining))
+
+
+def _model_observations(placed: list, slot: dict[int, int]):
+    """The placed models' points seen by two photos of `slot` {photo: slot} or more: their
+    observations {(photo slot, point): pixel}, {(photo, keypoint index): point}, the points
+    (world metres) and their colours."""
+    obs: dict[tuple[int, int], np.ndarray] = {}
+    keypoint_point: dict[tuple[int, int], int] = {}
+    pts, cols = [], []
+    for rec, world_from_sfm, cams in placed:
+        names = {iid: int(Path(im.name).stem) for iid, im in rec.images.items()}
+        for p in rec.points3D.values():
+            els = [(names[e.image_id], e.image_id, e.point2D_idx) for e in p.track.elements
+                   if names[e.image_id] in cams and names[e.image_id] in slot]
+            if len({i for i, _, _ in els}) < 2:
+                continue
+            for i, image_id, k in els:
+                xy = rec.images[image_id].points2D[k].xy
+                obs.setdefault((slot[i], len(pts)), xy - 0.5)  # COLMAP's pixel origin is a corner
+                keypoint_point.setdefault((i, k), len(pts))
+            pts.append(world_from_sfm[:3, :3] @ p.xyz + world_from_sfm[:3, 3])
+            cols.append(p.color)
+    return obs, keypoint_point, pts, cols
+
+
+def _joining_observations(obs: dict, joining: np.ndarray, posed: list[int], slot: dict[int, int],
+                          keypoint_point: dict[tuple[int, int], int], matches: "_Matches") -> None:
+    """Add to `obs` {(photo slot, point): pixel} the observations of each `joining` photo: its
+    keypoints that geometric verification matched with a `posed` photo's keypoint of a point
+    (`keypoint_point` {(posed photo, keypoint index): point})."""
+    for i in joining:
+        for j in posed:
+            for a, b in matches.inliers(int(i), j):
+                if (j, b) in keypoint_point:
+                    obs.setdefault((slot[int(i)], keypoint_point[(j, b)]), matches.keypoints(int(i))[a])
+
+
+def rig_heading(camera: Camera, cam_from_robot: np.ndarray) -> float:
+    """Heading (rad) of the robot holding `camera` (the mount undone)."""
+    world_from_robot = camera.world_from_cam @ cam_from_robot
+    return float(np.arctan2(world_from_robot[1, 0], world_from_robot[0, 0]))
+
+
 def at_mount_height(cameras: dict[int, Camera], height_m: float, tol_m: float) -> dict[int, Camera]:
     """The cameras {photo: Camera, floor frame} whose centres lie within `tol_m` of the
     mount's `height_m` above the floor (m): where a robot on a flat floor can have taken them."""
@@ -358,10 +466,11 @@ def at_mount_height(cameras: dict[int, Camera], height_m: float, tol_m: float) -
 
 
 class _Rig:
-    """What the robot knows of each photo of the random stage: its `circle`, the camera's
-    compass `heading` (rad), the dead-reckoning `estimates` and camera position `cam_xy`,
-    `driven_m` before it, the ultrasonic's `ranges_m` (None: not read); the camera's mount
-    (`mount_xy` m, `mount_yaw` rad) and `height` (m)."""
+    """What the robot knows of each photo of the random stage: its `circle`, the compass
+    reading `compass` (the robot's heading, rad) and the camera's heading by it, `heading`;
+    the dead-reckoning `estimates` and camera position `cam_xy`, `driven_m` before it, the
+    ultrasonic's `ranges_m` (None: not read); the camera's mount (`mount_xy` m, `mount_yaw`
+    rad) and `height` (m)."""
 
     def __init__(self, estimates: np.ndarray, compass_rad: np.ndarray, cam_from_robot: np.ndarray,
                  config: MapConfig, ranges_m: np.ndarray | None = None):
@@ -372,6 +481,7 @@ class _Rig:
         self.mount_xy = robot_from_cam[:2, 3]
         self.mount_yaw = float(np.arctan2(robot_from_cam[1, 2], robot_from_cam[0, 2]))
         self.height = float(robot_from_cam[2, 3])
+        self.compass = np.asarray(compass_rad, float)
         self.heading = np.array([_camera_yaw(np.r_[e[:2], c], cam_from_robot) for e, c in zip(estimates, compass_rad)])
         self.cam_xy = np.array([_camera_xy(e, cam_from_robot) for e in estimates]).reshape(-1, 2)
         self.driven_m = np.r_[0.0, np.cumsum(np.hypot(*np.diff(estimates[:, :2], axis=0).T))]
@@ -530,11 +640,15 @@ class _Matches:
             self.kp[i] = self.db.read_keypoints(self.ids[i])[:, :2] - 0.5
         return self.kp[i]
 
-    def __call__(self, i: int, j: int) -> tuple[np.ndarray, np.ndarray]:
+    def inliers(self, i: int, j: int) -> np.ndarray:
+        """(M, 2) keypoint indices of photos i and j that geometric verification kept."""
         a, b = self.ids[i], self.ids[j]
         if not self.db.exists_two_view_geometry(a, b):
-            return np.zeros((0, 2)), np.zeros((0, 2))
-        m = np.asarray(self.db.read_two_view_geometry(a, b).inlier_matches, int).reshape(-1, 2)
+            return np.zeros((0, 2), int)
+        return np.asarray(self.db.read_two_view_geometry(a, b).inlier_matches, int).reshape(-1, 2)
+
+    def __call__(self, i: int, j: int) -> tuple[np.ndarray, np.ndarray]:
+        m = self.inliers(i, j)
         return self.keypoints(i)[m[:, 0]], self.keypoints(j)[m[:, 1]]
 
 
