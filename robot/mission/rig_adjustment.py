@@ -60,7 +60,8 @@ class RigAdjustmentConfig:
     """An observation further than this from its adjusted point is an outlier; a point left
     with fewer than two observations is dropped from the map."""
     rounds: int = 2
-    """Reweighting rounds (the second moved yaws by under 0.1 degree on apartment 6)."""
+    """Reweighting rounds (on apartment 6 the second brought the worst photo from 0.80 to 0.45
+    degrees off)."""
     max_evaluations: int = 30
     """Least-squares evaluations per round."""
     min_joining_points: int = 15
