@@ -214,5 +214,7 @@ def adjust_on_rig(obs: RigObservations, K: np.ndarray, cam_from_robot: np.ndarra
     seen = np.bincount(obs.photo[inliers], minlength=n)
     agrees = np.abs(np.angle(np.exp(1j * (theta - obs.compass)))) <= 4 * config.compass_sigma_rad
     posed = ~obs.joining | ((seen >= config.min_joining_points) & agrees)
-    return RigFit(alpha, theta, posed, points, kept, float(np.median(start[inliers])),
-                  float(np.median(after[inliers])))
+    def median(e):
+        return float(np.median(e)) if e.size else float("nan")
+
+    return RigFit(alpha, theta, posed, points, kept, median(start[inliers]), median(after[inliers]))
