@@ -54,7 +54,8 @@ from ibr.proxy.triangulation import TriangulationConfig, sift_features
 from localization.feature_localizer import FeatureLocalizerConfig, FeatureMap
 from localization.motion_models import wrap_angle
 from robot.mission.localizer import FilteredBody, MissionFilterConfig, MissionLocalizer
-from robot.mission.map_building import MapConfig, RobotMap, Tracks, at_mount_height, extend_map, stereo_tracks
+from robot.mission.map_building import (MapConfig, RobotMap, Tracks, at_mount_height, extend_map, robot_pose,
+                                        stereo_tracks)
 from robot.mission.observer import MissionObserver, MissionPhoto
 from robot.mission.random_stage import Body
 from robot.mission.repose import ReposeConfig, odometry_held, repose_photos
@@ -238,9 +239,7 @@ class AdaptiveMission:
 
     def pose_of_camera(self, cam_from_world: np.ndarray) -> np.ndarray:
         """SE(2) robot pose of a camera pose (the mount undone)."""
-        world_from_robot = self._world_from_robot(cam_from_world)
-        return np.array([world_from_robot[0, 3], world_from_robot[1, 3],
-                         np.arctan2(world_from_robot[1, 0], world_from_robot[0, 0])])
+        return robot_pose(np.linalg.inv(cam_from_world), self.robot.cam_from_robot)
 
     def tilt_of_camera(self, cam_from_world: np.ndarray) -> float:
         """Angle (rad) between the robot's up axis at a camera pose and the map's level: the
@@ -708,8 +707,7 @@ def start_filter(robot: Robot, body: Body, photos: list[MissionPhoto], rmap: Rob
     last = len(photos) - 1
     start, std = body.est.pose, None
     if last in rmap.cameras:
-        w2r = rmap.cameras[last].world_from_cam @ robot.cam_from_robot
-        start = np.array([w2r[0, 3], w2r[1, 3], np.arctan2(w2r[1, 0], w2r[0, 0])])
+        start = robot_pose(rmap.cameras[last].world_from_cam, robot.cam_from_robot)
         std = np.array([0.1, 0.1, np.radians(3.0)])
     xy = np.array([c.center[:2] for c in rmap.cameras.values()] or [start[:2]])
     loc = MissionLocalizer(start, np.r_[xy, start[None, :2]], config.filter, rng, std)

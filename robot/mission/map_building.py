@@ -108,12 +108,7 @@ class RobotMap:
 
     def poses(self, cam_from_robot: np.ndarray) -> dict[int, np.ndarray]:
         """SE(2) robot pose (x, y, theta) of each mapped photo (the mount undone)."""
-        out = {}
-        for i, cam in self.cameras.items():
-            world_from_robot = cam.world_from_cam @ cam_from_robot
-            out[i] = np.array([world_from_robot[0, 3], world_from_robot[1, 3],
-                               np.arctan2(world_from_robot[1, 0], world_from_robot[0, 0])])
-        return out
+        return {i: robot_pose(cam.world_from_cam, cam_from_robot) for i, cam in self.cameras.items()}
 
 
 def stereo_pairs(cameras: list[Camera], k: int, min_baseline_m: float = 0.25,
@@ -345,14 +340,14 @@ def map_from_models(recs: list, database: Path, K: np.ndarray, size_hw: tuple[in
         placed.append((rec, world_from_sfm, cams))
         for i, c in cams.items():
             cameras.setdefault(i, c)
-    centres = placement.centres
+    centres, matches = placement.centres, _Matches(database)
     if config.rig is not None:
-        cameras, centres, parts = _on_rig(placed, cameras, centres, rig, _Matches(database), K, (w, h), config.rig)
+        cameras, centres, parts = _on_rig(placed, cameras, centres, rig, matches, K, (w, h), config.rig)
     else:
         parts = [_sfm_points(rec, world_from_sfm, cams) for rec, world_from_sfm, cams in placed]
     sfm_posed = len(cameras)
     added = complete_circles({i: c.world_from_cam for i, c in cameras.items()}, rig.circle, centres,
-                             rig.heading, _Matches(database), K, rig.mount_xy, rig.mount_yaw, rig.height,
+                             rig.heading, matches, K, rig.mount_xy, rig.mount_yaw, rig.height,
                              config.circles)
     cameras.update({i: Camera(K, w, h, np.linalg.inv(T), f"photo_{i:05d}") for i, T in added.items()})
     pts, cols, seen_from = (np.vstack([q[j] for q in parts]) for j in range(3))
@@ -374,15 +369,14 @@ def _on_rig(placed: list, cameras: dict[int, Camera], centres: dict[int, np.ndar
     if len(obs.photo) == 0:
         return cameras, centres, [_sfm_points(rec, T, cams) for rec, T, cams in placed]
     fit = adjust_on_rig(obs, K, rig.cam_from_robot, config)
-    robot_from_cam = np.linalg.inv(rig.cam_from_robot)
+    from robot.protocol import se2_matrix
+
     xy = turned(obs.xy, fit.alpha, obs.pivot)
     out = dict(cameras)
     for n in np.flatnonzero(fit.posed):
-        world_from_robot = np.eye(4)
-        world_from_robot[:2, :2] = rot2d(fit.theta[n])
-        world_from_robot[:2, 3] = xy[n]
         i = int(obs.photos[n])
-        out[i] = Camera(K, *size_wh, np.linalg.inv(world_from_robot @ robot_from_cam), f"photo_{i:05d}")
+        robot_from_world = np.linalg.inv(se2_matrix(np.r_[xy[n], fit.theta[n]]))
+        out[i] = Camera(K, *size_wh, rig.cam_from_robot @ robot_from_world, f"photo_{i:05d}")
     first = np.full(len(fit.points), -1)
     first[obs.point[::-1]] = obs.photo[::-1]  # the first photo that saw each point (an SfM-posed one)
     seen = np.array([out[int(obs.photos[f])].center for f in first[fit.kept]]).reshape(-1, 3)
@@ -411,7 +405,8 @@ def rig_observations(placed: list, cameras: dict[int, Camera], centres: dict[int
     _joining_observations(obs, joining, posed, slot, keypoint_point, matches)
     ph, pt = np.array(list(obs), int).reshape(-1, 2).T
     uv = np.array(list(obs.values()), float).reshape(-1, 2)
-    heading = np.r_[[rig_heading(cameras[i], rig.cam_from_robot) for i in posed], rig.compass[joining]]
+    heading = np.r_[[robot_pose(cameras[i].world_from_cam, rig.cam_from_robot)[2] for i in posed],
+                    rig.compass[joining]]
     xy = np.array([centres[int(rig.circle[i])] for i in photos]).reshape(-1, 2)
     return RigObservations(ph, pt, uv, photos, xy, heading, rig.compass[photos], np.array(pts).reshape(-1, 3),
                            np.array(cols, np.uint8).reshape(-1, 3), np.asarray(centres[min(centres)], float),
@@ -453,10 +448,12 @@ def _joining_observations(obs: dict, joining: np.ndarray, posed: list[int], slot
                     obs.setdefault((slot[int(i)], keypoint_point[(j, b)]), matches.keypoints(int(i))[a])
 
 
-def rig_heading(camera: Camera, cam_from_robot: np.ndarray) -> float:
-    """Heading (rad) of the robot holding `camera` (the mount undone)."""
-    world_from_robot = camera.world_from_cam @ cam_from_robot
-    return float(np.arctan2(world_from_robot[1, 0], world_from_robot[0, 0]))
+def robot_pose(world_from_cam: np.ndarray, cam_from_robot: np.ndarray) -> np.ndarray:
+    """SE(2) pose (x, y, theta) of the robot whose camera stands at `world_from_cam` (4, 4)
+    (the mount `cam_from_robot` undone)."""
+    world_from_robot = world_from_cam @ cam_from_robot
+    return np.array([world_from_robot[0, 3], world_from_robot[1, 3],
+                     np.arctan2(world_from_robot[1, 0], world_from_robot[0, 0])])
 
 
 def at_mount_height(cameras: dict[int, Camera], height_m: float, tol_m: float) -> dict[int, Camera]:

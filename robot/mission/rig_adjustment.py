@@ -40,6 +40,8 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.sparse import lil_matrix
 
+from robot.mission.circles import rot2d
+
 
 @dataclass(frozen=True)
 class RigAdjustmentConfig:
@@ -96,8 +98,7 @@ class RigObservations:
 
 def turned(xy: np.ndarray, alpha: float, pivot: np.ndarray) -> np.ndarray:
     """Positions `xy` (n, 2) m turned by `alpha` rad about `pivot` (2,) m."""
-    c, s = np.cos(alpha), np.sin(alpha)
-    return (np.asarray(xy) - pivot) @ np.array([[c, -s], [s, c]]).T + pivot
+    return (np.asarray(xy) - pivot) @ rot2d(alpha).T + pivot
 
 
 def cameras_on_rig(xy: np.ndarray, theta: np.ndarray, cam_from_robot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
