@@ -57,7 +57,9 @@ class RigAdjustmentConfig:
     adjustment is left out: SfM's poses put on the rig move a camera by up to the mount's
     5 cm and turn it by about a degree, 5-15 px at the robot's 1-3 m; a point further off
     is one SfM triangulated a few centimetres from a camera, between two photos of one
-    circle whose nearly parallel rays fix no depth."""
+    circle whose nearly parallel rays fix no depth. In pixels of the robot's 320 x 240
+    photos (focal length 277 px): a camera of another resolution would scale it with its
+    focal length (about 8 degrees)."""
     max_error_px: float = 4.0
     """An observation further than this from its adjusted point is an outlier; a point left
     with fewer than two observations is dropped from the map."""
