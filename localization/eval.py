@@ -18,6 +18,7 @@ from ibr.scene import Scene, View
 from localization.confidence import judge
 from localization.feature_localizer import pose_errors
 from localization.localize import METHODS, LocalizeError, LocConfig, SceneLocalizer
+from localization.mapped_share import MappedShare
 from localization.pose6_filter import cam_from_world_of, sample_around
 from localization.render_localizer import RenderModel
 
@@ -114,7 +115,7 @@ def evaluate_held_out(scene: Scene, method: str, trials: int, spread_m: float, s
         tri = config.features.triangulation
         feats = [sift_features(v.image, tri.n_features, tri.contrast_threshold) for v in scene.views]
     localizers: dict[int, SceneLocalizer] = {}
-    rows = []
+    rows, share = [], None
     for i in progress(range(trials), desc="queries", logger=log):
         k = i % len(scene)
         held = scene.views[k]
@@ -125,9 +126,12 @@ def evaluate_held_out(scene: Scene, method: str, trials: int, spread_m: float, s
             localizers.clear()
             others = [f for j, f in enumerate(feats) if j != k] if feats else None
             localizers[k] = SceneLocalizer(scene.without(held.name), method, config, others)
-        rows.append(query_trial(localizers[k], i, trials, held, spread_m, spread_deg, seed, config, on_trial))
+            release(share)
+            share = mapped_share(scene.without(held.name))
+        rows.append(query_trial(localizers[k], i, trials, held, spread_m, spread_deg, seed, config, on_trial, share))
     for loc in localizers.values():
         loc.release()
+    release(share)
     return rows
 
 
@@ -138,16 +142,32 @@ def evaluate_novel(scene: Scene, method: str, trials: int, spread_m: float, spre
         raise LocalizeError(f"scene {scene.name!r}: novel queries need a synthetic world to photograph")
     queries = novel_queries(scene, trials, np.random.default_rng(seed), median_point_depth(scene))
     loc = SceneLocalizer(scene, method, config)
-    rows = [query_trial(loc, i, trials, queries[i], spread_m, spread_deg, seed, config, on_trial)
+    share = mapped_share(scene)
+    rows = [query_trial(loc, i, trials, queries[i], spread_m, spread_deg, seed, config, on_trial, share)
             for i in progress(range(trials), desc="queries", logger=log)]
+    release(share)
     loc.release()
     return rows
 
 
+def mapped_share(map_scene: Scene) -> MappedShare | None:
+    """What measures the mapped share of query cameras against the photos of `map_scene`
+    (`localization.mapped_share`) when it is a synthetic world's (its true mesh known), else
+    None; `release` it when done."""
+    return MappedShare(map_scene.world.mesh, map_scene.cameras) if map_scene.world is not None else None
+
+
+def release(share: MappedShare | None) -> None:
+    if share is not None:
+        share.release()
+
+
 def query_trial(loc: SceneLocalizer, i: int, trials: int, query: View, spread_m: float, spread_deg: float,
-                seed: int, config: LocConfig, on_trial: Callable | None) -> dict:
+                seed: int, config: LocConfig, on_trial: Callable | None,
+                share: MappedShare | None = None) -> dict:
     """Trial i: `query` localised from a prior drawn around its true pose (seed + i); its row
-    (`trial_row`), logged and passed to on_trial(i, query, LocResult, row)."""
+    (`trial_row`, with the query's `mapped_share` when `share` measures it), logged and
+    passed to on_trial(i, query, LocResult, row)."""
     rng = np.random.default_rng(seed + i)
     truth = query.camera.cam_from_world
     prior = draw_prior(truth, spread_m, spread_deg, rng)
@@ -155,9 +175,13 @@ def query_trial(loc: SceneLocalizer, i: int, trials: int, query: View, spread_m:
     row = trial_row(i, query.name, res, truth, config)
     if loc.model is not None:
         row["from_truth"] = aligned_from_truth(loc.model, query, config)
+    mapped = ""
+    if share is not None:
+        row["mapped_share"] = share(query.camera)
+        mapped = f", mapped share {row['mapped_share']:.2f}"
     log.info(f"[{i + 1}/{trials}] {query.name}: {row['position_m']} m, {row['rotation_deg']} deg, "
              f"{'localised' if row['localized'] else 'not localised: ' + row['reason']}, "
-             f"confidence {row['confidence']:.2f}, {res.seconds:.2f} s")
+             f"confidence {row['confidence']:.2f}, {res.seconds:.2f} s{mapped}")
     if on_trial:
         on_trial(i, query, res, row)
     return row
@@ -192,7 +216,9 @@ def summarise(rows: list[dict]) -> dict:
     rate, flagged rate (queries flagged localised), flag precision (successes among the
     flagged; null when none is flagged), mean seconds, success rate per confidence bin, and
     the failures by cause (rendered methods: "search" when the alignment from the truth is
-    localised, so the model could have, "model" when it is not; null without failures)."""
+    localised, so the model could have, "model" when it is not; null without failures), and
+    the rates per bin of the queries' mapped share (`by_mapped_share`; null where no row has
+    one: a scene without a true mesh)."""
     pos = np.array([np.inf if r["position_m"] is None else r["position_m"] for r in rows])
     rot = np.array([np.inf if r["rotation_deg"] is None else r["rotation_deg"] for r in rows])
     flagged = [r for r in rows if r["localized"]]
@@ -206,6 +232,7 @@ def summarise(rows: list[dict]) -> dict:
         bins.append({"confidence": [lo, min(hi, 1.0)], "queries": len(inside),
                      "success_rate": float(np.mean([r["success"] for r in inside])) if inside else None})
     failed = [r for r in rows if not r["success"] and "from_truth" in r]
+    mapped = [r for r in rows if "mapped_share" in r]
     causes = {"search": sum(r["from_truth"]["localized"] for r in failed),
               "model": sum(not r["from_truth"]["localized"] for r in failed)}
     return {"median_position_m": median(pos), "median_rotation_deg": median(rot),
@@ -213,4 +240,21 @@ def summarise(rows: list[dict]) -> dict:
             "success_rate": float(np.mean([r["success"] for r in rows])),
             "flagged_rate": len(flagged) / len(rows),
             "flag_precision": float(np.mean([r["success"] for r in flagged])) if flagged else None,
-            "seconds_per_query": float(np.mean([r["seconds"] for r in rows])), "calibration": bins}
+            "seconds_per_query": float(np.mean([r["seconds"] for r in rows])), "calibration": bins,
+            "by_mapped_share": by_mapped_share(mapped) if mapped else None}
+
+
+def by_mapped_share(rows: list[dict]) -> list[dict]:
+    """Queries, success rate, flagged rate and flag precision per bin of the mapped share
+    (`localization.mapped_share`: how much of the query's view two map photos see at a
+    matchable angle): what the localiser reaches where its map could model the view,
+    apart from where the capture could not."""
+    out = []
+    for lo, hi in ((0.0, 0.25), (0.25, 0.5), (0.5, 1.01)):
+        inside = [r for r in rows if lo <= r["mapped_share"] < hi]
+        flagged = [r for r in inside if r["localized"]]
+        out.append({"mapped_share": [lo, min(hi, 1.0)], "queries": len(inside),
+                    "success_rate": float(np.mean([r["success"] for r in inside])) if inside else None,
+                    "flagged_rate": len(flagged) / len(inside) if inside else None,
+                    "flag_precision": float(np.mean([r["success"] for r in flagged])) if flagged else None})
+    return out

@@ -59,8 +59,8 @@ def test_failures_are_split_into_search_and_model_by_the_alignment_from_the_trut
 @pytest.mark.slow
 def test_rendered_localiser_rows_say_what_the_model_reaches_from_the_truth(gl_ctx):
     """Novel queries of a small office against its photo-textured proxy: each row carries the
-    alignment from the true pose; a localised success is near the truth, and its alignment
-    from the truth is localised too."""
+    alignment from the true pose and the query's mapped share; a localised success is near
+    the truth, and its alignment from the truth is localised too."""
     from localization.eval import evaluate_localization
     from localization.localize import LocConfig
     scene = load_scene("synthetic:office?views=12&width=320&height=240")
@@ -68,6 +68,20 @@ def test_rendered_localiser_rows_say_what_the_model_reaches_from_the_truth(gl_ct
     for r in out["per_trial"]:
         t = r["from_truth"]
         assert t["position_m"] < 0.05 and 0.0 <= t["trusted"] <= 1.0
+        assert 0.0 <= r["mapped_share"] <= 1.0
         if r["success"] and r["localized"]:
             assert t["localized"]
     assert out["flag_precision"] in (None, 1.0)
+    assert sum(b["queries"] for b in out["by_mapped_share"]) == 2
+
+
+def test_summary_splits_the_queries_by_how_much_of_their_view_the_map_could_model():
+    def row(success, localized, share):
+        return {"position_m": 0.01 if success else 1.0, "rotation_deg": 0.1, "success": success, "seconds": 1.0,
+                **Verdict(localized, float(localized), "").as_dict(), "mapped_share": share}
+    s = summarise([row(False, False, 0.1), row(True, False, 0.3), row(True, True, 0.9), row(False, True, 0.6)])
+    low, mid, high = s["by_mapped_share"]
+    assert (low["queries"], low["success_rate"], low["flagged_rate"], low["flag_precision"]) == (1, 0.0, 0.0, None)
+    assert (mid["queries"], mid["success_rate"]) == (1, 1.0)
+    assert (high["queries"], high["success_rate"], high["flagged_rate"], high["flag_precision"]) == (2, 0.5, 1.0, 0.5)
+    assert summarise([{k: v for k, v in row(True, True, 0.9).items() if k != "mapped_share"}])["by_mapped_share"] is None
