@@ -125,9 +125,10 @@ def evaluate_held_out(scene: Scene, method: str, trials: int, spread_m: float, s
                 loc.release()
             localizers.clear()
             others = [f for j, f in enumerate(feats) if j != k] if feats else None
-            localizers[k] = SceneLocalizer(scene.without(held.name), method, config, others)
+            rest = scene.without(held.name)
+            localizers[k] = SceneLocalizer(rest, method, config, others)
             release(share)
-            share = mapped_share(scene.without(held.name))
+            share = mapped_share(rest)
         rows.append(query_trial(localizers[k], i, trials, held, spread_m, spread_deg, seed, config, on_trial, share))
     for loc in localizers.values():
         loc.release()
