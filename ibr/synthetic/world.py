@@ -151,7 +151,10 @@ class SyntheticWorld:
         """`n` photo cameras at `view_height_m`, with a little seeded jitter: overlapping
         neighbours, as a person walking around with a camera would take them. Indoors
         they stand in the free space looking out from its centre; outdoors they stand on
-        a ring at 40% of the site's half-size looking in at its centre. With several rooms
+        a ring at 40% of the site's half-size looking in at its centre (the courtyard's 24
+        stand 3-6 m apart, some 2-4 m from a building: those see its near face from no
+        other photo within 30 degrees, so no stereo models it; `localization.mapped_share`
+        measures this per view). With several rooms
         the cameras are shared out over the rooms by floor area, and in each room they
         stand back from its middle and look across it at its walls."""
         rng = np.random.default_rng(self.seed + 1000)
