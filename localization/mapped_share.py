@@ -3,8 +3,10 @@ world's true mesh: the evaluation's measure of the capture, not of the localiser
 
 The rendered-view localiser compares a photo with a proxy triangulated from the map's photos
 (SIFT matches between two photos, `ibr.proxy.triangulation`). A surface that no two map
-photos see at a matchable angle has no point, so the proxy there is a guess or a hole, and
-a query looking at it can be localised by nothing the model holds. The courtyard's map (24
+photos see at a matchable angle has few points or none, so the proxy there is mostly a guess
+or a hole, and a query looking at it has little the model holds to be localised by (a
+conservative measure: a flat, well-marked wall can still match beyond 30 degrees, as the
+courtyard's low west face did on seed 4). The courtyard's map (24
 photos on a ring 16 m from its centre, 3-6 m apart) shows why this needs measuring: its
 photos 3.5 m from the low building's west face see that face from no other photo within
 30 degrees. Over its seeds 1-5 (20 novel queries each, a prior of 10 % of the scene's

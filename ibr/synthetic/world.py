@@ -153,8 +153,8 @@ class SyntheticWorld:
         they stand in the free space looking out from its centre; outdoors they stand on
         a ring at 40% of the site's half-size looking in at its centre (the courtyard's 24
         stand 3-6 m apart, some 2-4 m from a building: those see its near face from no
-        other photo within 30 degrees, so no stereo models it; `localization.mapped_share`
-        measures this per view). With several rooms
+        other photo within 30 degrees, beyond which SIFT seldom matches;
+        `localization.mapped_share` measures this per view). With several rooms
         the cameras are shared out over the rooms by floor area, and in each room they
         stand back from its middle and look across it at its walls."""
         rng = np.random.default_rng(self.seed + 1000)
