@@ -222,7 +222,6 @@ def summarise(rows: list[dict]) -> dict:
     one: a scene without a true mesh)."""
     pos = np.array([np.inf if r["position_m"] is None else r["position_m"] for r in rows])
     rot = np.array([np.inf if r["rotation_deg"] is None else r["rotation_deg"] for r in rows])
-    flagged = [r for r in rows if r["localized"]]
 
     def median(x):
         m = float(np.median(x))
@@ -238,10 +237,7 @@ def summarise(rows: list[dict]) -> dict:
               "model": sum(not r["from_truth"]["localized"] for r in failed)}
     return {"median_position_m": median(pos), "median_rotation_deg": median(rot),
             "failures_by_cause": causes if failed else None,
-            "success_rate": float(np.mean([r["success"] for r in rows])),
-            "flagged_rate": len(flagged) / len(rows),
-            "flag_precision": float(np.mean([r["success"] for r in flagged])) if flagged else None,
-            "seconds_per_query": float(np.mean([r["seconds"] for r in rows])), "calibration": bins,
+            **rates(rows), "seconds_per_query": float(np.mean([r["seconds"] for r in rows])), "calibration": bins,
             "by_mapped_share": by_mapped_share(mapped) if mapped else None}
 
 
@@ -253,9 +249,14 @@ def by_mapped_share(rows: list[dict]) -> list[dict]:
     out = []
     for lo, hi in ((0.0, 0.25), (0.25, 0.5), (0.5, 1.01)):
         inside = [r for r in rows if lo <= r["mapped_share"] < hi]
-        flagged = [r for r in inside if r["localized"]]
-        out.append({"mapped_share": [lo, min(hi, 1.0)], "queries": len(inside),
-                    "success_rate": float(np.mean([r["success"] for r in inside])) if inside else None,
-                    "flagged_rate": len(flagged) / len(inside) if inside else None,
-                    "flag_precision": float(np.mean([r["success"] for r in flagged])) if flagged else None})
+        out.append({"mapped_share": [lo, min(hi, 1.0)], "queries": len(inside), **rates(inside)})
     return out
+
+
+def rates(rows: list[dict]) -> dict:
+    """Success rate, flagged rate (queries flagged localised) and flag precision (successes
+    among the flagged) of `rows`; null where there is no row, or no flagged row."""
+    flagged = [r for r in rows if r["localized"]]
+    return {"success_rate": float(np.mean([r["success"] for r in rows])) if rows else None,
+            "flagged_rate": len(flagged) / len(rows) if rows else None,
+            "flag_precision": float(np.mean([r["success"] for r in flagged])) if flagged else None}
