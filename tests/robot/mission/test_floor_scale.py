@@ -1,0 +1,87 @@
+"""The map's scale from the floor seen by pairs of photos: a textured floor photographed from
+three stops, a map whose horizontal lengths are 4 % too long (heights at the mount's), and
+the floor's homographies give the factor back."""
+
+import cv2
+import numpy as np
+
+from ibr.camera import Camera, intrinsics_from_fov
+from robot.mission.floor_scale import FloorScaleConfig, floor_pixels, floor_scale, sample
+from robot.protocol import forward_camera_mount, robot_camera
+
+STOPS = np.array([[0.0, 0.0], [0.8, 0.3], [0.3, 0.9]])
+"""Robot positions (m)."""
+HEIGHT = 0.4
+EXTENT, TEXELS = 8.0, 800
+"""The floor texture covers [-4, 4] m squared with this many texels a side."""
+
+
+def _floor_texture(rng) -> np.ndarray:
+    """(TEXELS, TEXELS) float32 intensity in [0, 1]: blotches of several sizes."""
+    t = sum(cv2.GaussianBlur(rng.uniform(0, 1, (TEXELS, TEXELS)).astype(np.float32), (0, 0), s) * s
+            for s in (1.5, 4.0, 10.0))
+    return ((t - t.min()) / np.ptp(t)).astype(np.float32)
+
+
+def _photo(cam: Camera, texture: np.ndarray, box: tuple[float, float, float]) -> np.ndarray:
+    """RGB uint8 photo of the textured floor (walls far away: a flat grey; a dark square
+    `box` (x, y, half side m) lying on the floor hides part of it, as furniture would)."""
+    uv, X = floor_pixels(cam, 100.0, 1)
+    img = np.full((cam.height, cam.width), 0.5, np.float32)
+    vals = sample(texture, (X[:, :2] + EXTENT / 2) / EXTENT * TEXELS - 0.5)
+    inside = np.all(np.abs(X[:, :2] - box[:2]) < box[2], axis=1)
+    vals[inside] = 0.1
+    img[uv[:, 1].astype(int), uv[:, 0].astype(int)] = vals
+    return np.repeat((img * 255).round().astype(np.uint8)[..., None], 3, axis=2)
+
+
+def _scene(map_scale: float, rng, yaw_err_deg: float = 0.0):
+    """(images, map cameras): photos of three stops at headings 0, 15 and 30 degrees, the
+    map's cameras with their horizontal positions scaled by `map_scale` about the first stop
+    and each turned about the vertical by a random error of `yaw_err_deg` (standard
+    deviation, degrees), as SfM's are."""
+    K, size = intrinsics_from_fov(60.0, 320, 240), (320, 240)
+    mount = forward_camera_mount(HEIGHT, 0.05)
+    texture = _floor_texture(rng)
+    images, cams = {}, {}
+    for s, xy in enumerate(STOPS):
+        for h, heading in enumerate(np.radians([0.0, 15.0, 30.0])):
+            true = robot_camera(np.r_[xy, heading], K, size, mount)
+            i = 3 * s + h
+            images[i] = _photo(true, texture, (1.8, 0.6, 0.15))
+            c = true.center
+            moved = np.r_[STOPS[0] + map_scale * (c[:2] - STOPS[0]), c[2]]
+            a = np.radians(rng.normal(0.0, yaw_err_deg))
+            turn = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1.0]])
+            T = true.cam_from_world.copy()
+            T[:3, :3] = T[:3, :3] @ turn.T
+            T[:3, 3] = -T[:3, :3] @ moved
+            cams[i] = Camera(K, *size, T)
+    return images, cams
+
+
+def test_floor_scale_recovers_a_wrong_map_scale():
+    images, cams = _scene(1.04, np.random.default_rng(3))
+    k, fits = floor_scale(images, cams, FloorScaleConfig())
+    assert len(fits) >= 5
+    assert abs(k * 1.04 - 1.0) < 0.005, (k, [round(np.exp(f.log_k), 4) for f in fits])
+
+
+def test_floor_scale_despite_the_map_cameras_yaw_errors():
+    """Headings 0.4 degrees off one another shift the floor 2 px: the turn is fitted with k."""
+    images, cams = _scene(0.96, np.random.default_rng(6), yaw_err_deg=0.4)
+    k, fits = floor_scale(images, cams)
+    assert abs(k * 0.96 - 1.0) < 0.005, (k, [round(np.exp(f.log_k), 4) for f in fits])
+
+
+def test_floor_scale_of_a_right_map_is_one():
+    images, cams = _scene(1.0, np.random.default_rng(4))
+    k, _ = floor_scale(images, cams, FloorScaleConfig())
+    assert abs(k - 1.0) < 0.005
+
+
+def test_no_pairs_without_baselines():
+    images, cams = _scene(1.0, np.random.default_rng(5))
+    one_stop = {i: c for i, c in cams.items() if i < 3}
+    k, fits = floor_scale({i: images[i] for i in one_stop}, one_stop)
+    assert np.isnan(k) and not fits
