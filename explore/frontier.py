@@ -61,6 +61,34 @@ class SonarGrid:
         """(H, W) bool: no reading reached the cell."""
         return (self.free == 0) & (self.occupied == 0)
 
+    @property
+    def occupied_mask(self) -> np.ndarray:
+        """(H, W) bool: more occupied hits than free ones (a surface the beam met)."""
+        return self.occupied > self.free
+
+    def blocks(self, a: np.ndarray, b: np.ndarray, chunk: int = 4096) -> np.ndarray:
+        """(K,) bool: the straight line from each world point a (K, 2) to b (K, 2) (m)
+        crosses an occupied cell (`occupied_mask`), b's own cell included: a camera at a
+        did not see empty space at b through the surface the ultrasonic met. The line is
+        sampled every half cell; a's own cell is skipped (the robot stood there)."""
+        a, b = np.asarray(a, float).reshape(-1, 2), np.asarray(b, float).reshape(-1, 2)
+        out = np.zeros(len(a), bool)
+        occupied = self.occupied_mask
+        H, W = occupied.shape
+        for k in range(0, len(a), chunk):
+            aa, bb = a[k:k + chunk], b[k:k + chunk]
+            length = np.linalg.norm(bb - aa, axis=1)
+            n = int(np.ceil(length.max(initial=0.0) / (self.cell_m / 2))) + 1
+            t = np.linspace(0.0, 1.0, n)
+            xy = aa[:, None] + t[None, :, None] * (bb - aa)[:, None]  # (k, n, 2)
+            i, j = self.cells(xy.reshape(-1, 2))
+            own = (i == np.repeat(self.cells(aa)[0], n)) & (j == np.repeat(self.cells(aa)[1], n))
+            ok = (i >= 0) & (i < H) & (j >= 0) & (j < W) & ~own
+            hit = np.zeros(len(i), bool)
+            hit[ok] = occupied[i[ok], j[ok]]
+            out[k:k + chunk] = hit.reshape(len(aa), n).any(axis=1)
+        return out
+
     def cells(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(i, j) integer cells of world points (N, 2) (may be out of bounds)."""
         ji = np.floor((np.asarray(xy, float) - self.origin) / self.cell_m).astype(int)

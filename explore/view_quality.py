@@ -30,6 +30,7 @@ of `config.size` and centres, as `localization.pose_views.se2_views` builds them
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import moderngl
@@ -229,13 +230,19 @@ class ViewQuality:
         `cam_from_robot` (4, 4)."""
         return self.score_views(*self.pose_views(poses, template, cam_from_robot))
 
-    def seen_free(self, points: np.ndarray, margin_m: float = 0.3) -> np.ndarray:
+    def seen_free(self, points: np.ndarray, margin_m: float = 0.3,
+                  blocked: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> np.ndarray:
         """(N,) bool: some source saw through each world point (N, 3) (metres): the point
         projects inside the source's depth map, in front of it, at least `margin_m` (metres,
         camera z) nearer than the proxy there, so the photo's ray crossed it: empty space.
         A point behind a wall, inside furniture, or where the proxy has a hole is not. The
         candidates of the heuristic must stand there: a view from behind the proxy sees only
-        surfaces no source saw and would score the most."""
+        surfaces no source saw and would score the most.
+
+        blocked(source centres (K, 3), points (K, 3)) -> (K,) bool: sight lines another
+        sensor found blocked (the ultrasonic, `explore.frontier.SonarGrid.blocks`); they
+        do not count. The proxy misses what SfM found no point on (the plain side of a
+        bed the camera stood next to), and its rays then "see" through it."""
         s = self.sources
         n_src, h, w = s.depths.shape
         P = np.c_[np.asarray(points, dtype=np.float64).reshape(-1, 3), np.ones(len(points))]
@@ -247,7 +254,11 @@ class ViewQuality:
         d = np.zeros(z.shape)
         src = np.broadcast_to(np.arange(n_src)[:, None], z.shape)
         d[ok] = s.depths[src[ok], px[..., 1][ok].astype(int), px[..., 0][ok].astype(int)]
-        return np.any(ok & (d > 0) & (z < d - margin_m), axis=0)
+        seen = ok & (d > 0) & (z < d - margin_m)
+        if blocked is not None and seen.any():
+            si, ni = np.nonzero(seen)
+            seen[si, ni] = ~blocked(s.centres[si], P[ni, :3])
+        return np.any(seen, axis=0)
 
     def score_views_numpy(self, clip_from_world: np.ndarray, eyes: np.ndarray) -> np.ndarray:
         """The naive path (tests, benchmark baseline): one render and read-back per view,

@@ -211,12 +211,17 @@ def adaptive_rounds(mission: AdaptiveMission, result: MissionResult, photo_budge
 def _adaptive_round(mission: AdaptiveMission, result: MissionResult, goals: np.ndarray, grid, photo_budget: int,
                     r: int) -> None:
     """Visit the round's goals (photos at each one reached) and rebuild the map. A goal
-    given up is remembered (`AdaptiveMission.given_up_goals`): none is drawn near it again."""
+    given up is remembered (`AdaptiveMission.given_up_goals`): none is drawn near it again,
+    and this round's goals near it are skipped (apartment 3: five goals in one bed, each
+    given up in turn)."""
     new, limit = [], mission.config.step_limit_s
     for k, g in enumerate(goals):
         left = photo_budget - len(result.model_photos)
         if left <= 0:
             break
+        if mission.near_given_up(g[None, :2])[0]:  # this round gave up a goal next to it
+            log.info(f"round {r + 1}: skipped a goal at ({g[0]:.2f}, {g[1]:.2f}) next to one given up")
+            continue
         with watchdog(f"round {r + 1}: driving to goal {k + 1} at ({g[0]:.2f}, {g[1]:.2f})", limit):
             reached = mission.go_to(g, grid)
             if reached:

@@ -66,3 +66,18 @@ def test_bad_readings_are_skipped_and_no_reading_gives_an_empty_grid():
     assert grid.is_free(np.array([[0.0, 0.0]])).all()
     empty = sonar_grid(np.zeros((0, 3)), np.zeros(0), 0.075)
     assert empty.free_bounds() is None and frontiers(empty, 0.3) == []
+
+
+def test_a_box_the_beam_met_blocks_the_sight_lines_through_it():
+    """A 0.6 x 0.6 m box 1 m east of a robot turning in the middle of a closed room: the
+    line from the robot to a point behind the box crosses the cells the beam met, so it is
+    blocked; lines to points west of it, or to the box's near side from the north, are not."""
+    box = shapely.box(0.7, -0.3, 1.3, 0.3)
+    poses, ranges = readings(shapely.union(room(door=False), box.exterior), (-0.5, 0.0))
+    grid = sonar_grid(poses, ranges, 0.075)
+    here = np.array([-0.5, 0.0])
+    behind = np.array([[1.0, 0.0], [1.2, 0.1], [1.4, -0.1]])
+    clear = np.array([[0.3, 0.0], [-1.2, 0.5], [0.0, -1.0], [0.2, 1.0]])
+    assert grid.blocks(np.tile(here, (3, 1)), behind).all()
+    assert not grid.blocks(np.tile(here, (4, 1)), clear).any()
+    assert grid.blocks(np.zeros((0, 2)), np.zeros((0, 2))).shape == (0,)

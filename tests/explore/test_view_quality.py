@@ -151,3 +151,16 @@ def test_seen_free_is_the_space_the_photos_saw_through(office, vq):
     for pts in (outside, solid):
         assert not vq.seen_free(np.c_[pts, np.full(len(pts), 1.2)], margin_m=0.2).any()
     assert vq.seen_free(np.zeros((0, 3))).shape == (0,)
+
+
+def test_sight_lines_another_sensor_found_blocked_do_not_count(office, vq):
+    """The space ahead of the sources stops counting as seen through when every sight line
+    to it is blocked (the ultrasonic met a surface the proxy lacks), and only where it is."""
+    sources = office.default_cameras(24, 160, 120)
+    ahead = np.array([c.center + 0.6 * c.world_from_cam[:3, 2] for c in sources])
+    seen = vq.seen_free(ahead, margin_m=0.2)
+    assert not vq.seen_free(ahead, 0.2, blocked=lambda c, p: np.ones(len(p), bool)).any()
+    east = lambda c, p: p[:, 0] > 0.0  # noqa: E731 - sight lines to points east of x = 0 blocked
+    kept = vq.seen_free(ahead, 0.2, blocked=east)
+    assert not kept[ahead[:, 0] > 0].any()
+    np.testing.assert_array_equal(kept[ahead[:, 0] <= 0], seen[ahead[:, 0] <= 0])

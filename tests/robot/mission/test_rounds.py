@@ -9,7 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from robot.mission.adaptive import AdaptiveConfig
+from robot.mission.adaptive import AdaptiveConfig, AdaptiveMission
 from robot.mission.localizer import MissionFilterConfig, MissionLocalizer
 from robot.mission.mission import MissionResult, adaptive_rounds, say_if_lost
 from robot.mission.observer import MissionPhoto
@@ -40,6 +40,25 @@ class OneGoalPerRound:
     def rebuild(self, new) -> None:
         self.rebuilds += 1
 
+    near_given_up = AdaptiveMission.near_given_up
+
+
+class BlockedGoal(OneGoalPerRound):
+    """A mission whose round draws three goals, the first unreachable and the second next
+    to it; it records the goals it drove to."""
+
+    def __init__(self, photos: list, config: AdaptiveConfig):
+        super().__init__(photos, config)
+        self.tried = []
+
+    def choose_goals(self):
+        sep = self.config.goal_separation_m
+        return np.array([[5.0, 0.0, 0.0], [5.0 + sep / 2, 0.0, 1.0], [5.0 + 3 * sep, 0.0, 0.0]]), 1.0, None
+
+    def go_to(self, goal, grid) -> bool:
+        self.tried.append(goal[0])
+        return goal[0] != 5.0
+
 
 @pytest.mark.parametrize("max_rounds, rounds, stopped", [(None, 20, "budget"), (3, 3, "budget")])
 def test_rounds_go_on_until_the_budget_unless_capped(max_rounds, rounds, stopped):
@@ -49,6 +68,14 @@ def test_rounds_go_on_until_the_budget_unless_capped(max_rounds, rounds, stopped
     adaptive_rounds(mission, result, photo_budget=50)  # 40 photos to take, 2 per round
     assert result.rounds == rounds == mission.rebuilds and result.stopped_because == stopped
     assert len(result.model_photos) == (50 if max_rounds is None else 10 + 2 * rounds)
+
+
+def test_a_round_skips_its_goals_next_to_one_it_gave_up():
+    photos = [MissionPhoto(None, np.zeros(3), "random") for _ in range(10)]
+    mission = BlockedGoal(photos, AdaptiveConfig(max_rounds=1, step_limit_s=None))
+    adaptive_rounds(mission, MissionResult(photos, None), photo_budget=50)
+    sep = mission.config.goal_separation_m
+    assert mission.tried == [5.0, 5.0 + 3 * sep] and mission.given_up == 1
 
 
 def test_the_default_has_no_round_limit():
