@@ -455,7 +455,7 @@ class AdaptiveMission:
         """(K,) bool: the ultrasonic met a surface between each camera centre (K, 3) and
         world point (K, 3) (`SonarGrid.blocks`): the camera's ray there crossed a surface the
         map's mesh lacks (apartment 3: the plain side of a bed 0.2 m from the photo, no SfM
-        point on it; 6 of 13 goals were drawn inside the bed and given up)."""
+        point on it; 5 of the 14 goals of rounds 1-2 were drawn inside the bed and given up)."""
         if self._sonar is None:
             return np.zeros(len(points), bool)
         return self._sonar.blocks(centres[:, :2], points[:, :2])
