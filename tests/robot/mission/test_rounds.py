@@ -1,6 +1,7 @@
 """The adaptive stage's round loop (`adaptive_rounds`) with a stand-in mission whose every
 round reaches one goal and takes two photos: by default (no round limit) it goes on until
-the photo budget is spent, however many rounds that takes; a `max_rounds` still caps it."""
+the photo budget is spent, however many rounds that takes; a `max_rounds` still caps it.
+A round skips its goals next to one it gave up."""
 
 from __future__ import annotations
 
