@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ibr.camera import Camera
 
@@ -95,19 +96,13 @@ def floor_pixels(cam: Camera, max_range_m: float, stride_px: int) -> tuple[np.nd
     return uv[keep], X[keep]
 
 
-def _yaw(a: float) -> np.ndarray:
-    """3x3 rotation about the world's z axis by `a` (rad)."""
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
-
-
 def project_moved(cam_i: Camera, cam_j: Camera, X: np.ndarray, log_k: np.ndarray,
                   yaw_rad: float = 0.0) -> np.ndarray:
     """(len(log_k), N, 2) pixels in photo j of world points X (N, 3) with j's horizontal
     offset from i scaled by exp(log_k) and j turned by `yaw_rad` about the vertical (its
     height kept); NaN behind j."""
     ci, cj = cam_i.center, cam_j.center
-    R, K = cam_j.cam_from_world[:3, :3] @ _yaw(-yaw_rad), cam_j.K
+    R, K = cam_j.cam_from_world[:3, :3] @ Rotation.from_euler("z", -yaw_rad).as_matrix(), cam_j.K
     d = np.r_[(cj - ci)[:2], 0.0]
     out = np.empty((len(log_k), len(X), 2))
     for n, lk in enumerate(log_k):
