@@ -56,6 +56,7 @@ def run(args: argparse.Namespace) -> int:
     report = {"scene": args.scene, "strategy": args.strategy, "seed": args.seed,
               "coverage": obs.coverage_curve[-1][1] if obs.coverage_curve else 0.0,
               "photos": len(result.model_photos), "localisation_photos": len(result.photos) - len(result.model_photos),
+              "random_photos": sum(p.stage == "random" for p in result.photos),
               "path_length_m": result.path_m, "coverage_curve": [list(p) for p in obs.coverage_curve],
               "rounds": result.rounds, "goals_reached": len(result.goals), "goals_given_up": result.given_up,
               "pnp_fixes": result.fixes, "pnp_failures": result.failed_fixes,

@@ -114,6 +114,10 @@ class RobotMap:
     normals: np.ndarray
     mesh: trimesh.Trimesh
     registered: int = 0
+    floor_scaled: bool | None = None
+    """The first map's: True when the floor seen from two stops fixed its scale
+    (`floor_scale`); False when too few pairs of photos did (a map of one stop has no
+    baseline), so its scale is the placement's, unchecked; None: not tried."""
 
     def poses(self, cam_from_robot: np.ndarray) -> dict[int, np.ndarray]:
         """SE(2) robot pose (x, y, theta) of each mapped photo (the mount undone)."""
@@ -361,28 +365,32 @@ def map_from_models(recs: list, database: Path, K: np.ndarray, size_hw: tuple[in
                              config.circles)
     cameras.update({i: Camera(K, w, h, np.linalg.inv(T), f"photo_{i:05d}") for i, T in added.items()})
     pts, cols, seen_from = (np.vstack([q[j] for q in parts]) for j in range(3))
+    scaled = None
     if images is not None and config.floor_scale is not None:
-        cameras, pts, seen_from = _floor_scaled(images, cameras, pts, seen_from, rig, config.floor_scale)
+        cameras, pts, seen_from, scaled = _floor_scaled(images, cameras, pts, seen_from, rig, config.floor_scale)
     log.info(f"initial map: {len(placement.models)} of {len(recs)} SfM models placed in metres "
              f"({[r.num_reg_images() for r in recs]} photos each; {sfm_posed} photos), "
              f"{len(added)} more photos turned into place in their circles")
-    return _mesh_map(cameras, pts, cols, seen_from, config, registered=len(cameras))
+    rmap = _mesh_map(cameras, pts, cols, seen_from, config, registered=len(cameras))
+    rmap.floor_scaled = scaled
+    return rmap
 
 
 def _floor_scaled(images: list[np.ndarray], cameras: dict[int, Camera], pts: np.ndarray, seen_from: np.ndarray,
-                  rig: "_Rig", config: FloorScaleConfig) -> tuple[dict[int, Camera], np.ndarray, np.ndarray]:
+                  rig: "_Rig", config: FloorScaleConfig) -> tuple[dict[int, Camera], np.ndarray, np.ndarray, bool]:
     """The map (cameras, points, the centres that saw them) scaled about the known start (at
-    the camera's height) by the floor's factor (`floor_scale`); as it was without one."""
+    the camera's height) by the floor's factor (`floor_scale`), and True; as it was without
+    one, and False."""
     k, fits = floor_scale({i: images[i] for i in cameras}, cameras, config)
     if not np.isfinite(k):
         log.info(f"initial map: no floor scale ({len(fits)} pairs of photos count)")
-        return cameras, pts, seen_from
+        return cameras, pts, seen_from, False
     q = np.percentile([f.log_k for f in fits], [25, 75])
     log.info(f"initial map: the floor scales it by {k:.4f} ({len(fits)} pairs of photos, quartiles "
              f"{np.exp(q[0]):.4f}-{np.exp(q[1]):.4f})")
     origin = np.r_[rig.estimates[0, :2], rig.height]
     cams, P = rescaled(cameras, np.vstack([pts, seen_from]), k, origin)
-    return cams, P[:len(pts)], P[len(pts):]
+    return cams, P[:len(pts)], P[len(pts):], True
 
 
 def _on_rig(placed: list, cameras: dict[int, Camera], centres: dict[int, np.ndarray], rig: "_Rig",

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import itertools
 import logging
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -19,9 +20,9 @@ from ibr.errors import InputError
 from robot.mission.adaptive import AdaptiveConfig, AdaptiveMission, start_filter
 from robot.mission.journal import MissionJournal, restore_adaptive
 from robot.mission.localizer import FilteredBody, MissionLocalizer
-from robot.mission.map_building import RobotMap, initial_map
+from robot.mission.map_building import MapError, RobotMap, initial_map
 from robot.mission.observer import MissionObserver, MissionPhoto
-from robot.mission.random_stage import Body, RandomExplorationConfig, random_exploration
+from robot.mission.random_stage import Body, RandomExplorationConfig, random_exploration, steps_per_circle
 from robot.mission.watchdog import watchdog
 from robot.protocol import Robot
 
@@ -59,45 +60,113 @@ class MissionResult:
         return [p for p in self.photos if p.stage != "localise"]
 
 
+class RandomStage:
+    """The random exploration as the mission runs it: photos taken (or replayed from the
+    `journal`: on a simulator checked against the log, on a real robot not retaken, going on
+    from the last logged estimate) up to a count by `take`, and more later from where the
+    robot stands when the first map asks for them (`_first_map`), as if the stage had been
+    planned that long. At most `budget` photos."""
+
+    def __init__(self, robot: Robot, start_pose: np.ndarray, rcfg: RandomExplorationConfig,
+                 rng: np.random.Generator, obs: MissionObserver, journal, budget: int):
+        self.logged = journal.resumed_photos(lambda r, ph: MissionPhoto(ph, np.asarray(r["pose"], float), "random"))
+        self.photos: list[MissionPhoto] = []
+        self.obs, self.journal, self.per_circle = obs, journal, steps_per_circle(rcfg)
+        start, path_m = start_pose, 0.0
+        if self.logged and not journal.replayable:
+            state = journal.last_state() or {}
+            start, path_m = np.asarray(state.get("estimate", self.logged[-1].estimate), float), state.get("path_m", 0.0)
+            self.photos, self.logged = self.logged, []
+            log.info(f"random exploration: resuming after {len(self.photos)} logged photos")
+        elif self.logged:
+            log.info(f"random exploration: replaying {len(self.logged)} logged photos")
+        self.body = Body(robot, start)
+        self.body.path_m = path_m
+        self.shots = random_exploration(robot, start, replace(rcfg, n_photos=max(budget - len(self.photos), 0)), rng,
+                                        self.body)
+
+    @property
+    def n_logged(self) -> int:
+        """Random photos the journal held (all of them replayed or kept)."""
+        return max(len(self.logged), len(self.photos))
+
+    def take(self, n: int) -> None:
+        """Photos up to `n` in all (fewer when the budget runs out)."""
+        for shot in itertools.islice(self.shots, max(n - len(self.photos), 0)):
+            k = len(self.photos)
+            if k < len(self.logged):
+                self.journal.check_replay(self.logged[k], shot)
+                self.photos.append(self.logged[k])
+                continue
+            self.photos.append(MissionPhoto(shot.photo, shot.estimate, "random"))
+            self.obs.photo(self.photos[-1])
+            self.obs.estimate(shot.estimate, "odometry")
+            self.journal.random_photo_done(self.body)
+            if len(self.photos) % 10 == 0:
+                log.info(f"random exploration: {len(self.photos)}/{n} photos, {self.body.path_m:.1f} m driven")
+
+
 def run_random_stage(robot: Robot, start_pose: np.ndarray, n_random: int, rcfg: RandomExplorationConfig,
                      rng: np.random.Generator, obs: MissionObserver, journal) -> tuple[list[MissionPhoto], Body]:
     """Random exploration up to `n_random` photos, after those the journal kept (replayed on
     a simulator, checked; a real robot goes on from its last logged estimate)."""
-    photos = journal.resumed_photos(lambda r, ph: MissionPhoto(ph, np.asarray(r["pose"], float), "random"))
-    skip, start, path_m = len(photos), start_pose, 0.0
-    if skip and not journal.replayable:
-        state = journal.last_state() or {}
-        start, path_m = np.asarray(state.get("estimate", photos[-1].estimate), float), state.get("path_m", 0.0)
-        rcfg, skip = replace(rcfg, n_photos=n_random - len(photos)), 0
-    else:
-        rcfg = replace(rcfg, n_photos=n_random)
-    body = Body(robot, start)
-    body.path_m = path_m
-    if len(photos):
-        log.info(f"random exploration: resuming after {len(photos)} logged photos")
-    for k, shot in enumerate(random_exploration(robot, start, rcfg, rng, body) if len(photos) < n_random
-                             or journal.replayable else ()):
-        if k < skip:
-            journal.check_replay(photos[k], shot)
-            continue
-        photos.append(MissionPhoto(shot.photo, shot.estimate, "random"))
-        obs.photo(photos[-1])
-        obs.estimate(shot.estimate, "odometry")
-        journal.random_photo_done(body)
-        if len(photos) % 10 == 0:
-            log.info(f"random exploration: {len(photos)}/{n_random} photos, {body.path_m:.1f} m driven")
-    return photos, body
+    stage = RandomStage(robot, start_pose, rcfg, rng, obs, journal, n_random)
+    stage.take(n_random)
+    return stage.photos, stage.body
 
 
-def _start_adaptive(robot: Robot, start_pose: np.ndarray, n_random: int, rcfg: RandomExplorationConfig,
-                    config: AdaptiveConfig, rng: np.random.Generator, obs: MissionObserver,
-                    journal) -> tuple[AdaptiveMission, MissionResult]:
-    """Random exploration, the initial map and the first vision fix; committed as round 0."""
-    photos, body = run_random_stage(robot, start_pose, n_random, rcfg, rng, obs, journal)
+def _first_map(stage: RandomStage, robot: Robot, n_random: int, config: AdaptiveConfig) -> RobotMap:
+    """The initial map of the random stage's `n_random` photos. While SfM cannot map them or
+    the floor cannot check the map's scale (`RobotMap.floor_scaled`: no two stops saw a
+    common floor, as in a map of one spot, or the pairs disagree, as in a wrong layout), the
+    stage goes on for another circle and the map is built again, at most
+    `config.extra_random_circles` times within the budget; then the last map, or its error.
+    A resumed stage first takes the whole circles the journal holds photos of."""
+    per_circle = stage.per_circle
+    stage.take(n_random + per_circle * _circles_beyond(stage.n_logged, n_random, per_circle))
+    while True:
+        photos = stage.photos
+        rmap, error = _map_or_error(photos, robot, config)
+        if rmap is not None and rmap.floor_scaled is not False:
+            return rmap
+        why = (f"SfM failed ({error})" if rmap is None else
+               "the floor did not check its scale (too few pairs of photos from two stops, or pairs that disagree)")
+        before = len(photos)
+        if _circles_beyond(before, n_random, per_circle) < config.extra_random_circles:
+            stage.take(before + per_circle)
+        if len(stage.photos) == before:  # no circle left to take
+            if rmap is None:
+                raise error
+            log.warning(f"initial map: {why}; going on with it")
+            return rmap
+        log.warning(f"initial map: {why}; took another circle of {len(stage.photos) - before} random photos")
+
+
+def _map_or_error(photos: list[MissionPhoto], robot: Robot, config: AdaptiveConfig
+                  ) -> tuple[RobotMap | None, MapError | None]:
+    """(`initial_map` of the random `photos`, None), or (None, its MapError)."""
     log.info(f"initial map: SfM of {len(photos)} photos")
-    rmap = initial_map([p.photo.image for p in photos], robot.intrinsics, np.array([p.estimate for p in photos]),
-                       np.array([p.photo.compass_rad for p in photos]), robot.cam_from_robot, config.map,
-                       np.array([p.photo.range_m for p in photos]))
+    try:
+        return initial_map([p.photo.image for p in photos], robot.intrinsics, np.array([p.estimate for p in photos]),
+                           np.array([p.photo.compass_rad for p in photos]), robot.cam_from_robot, config.map,
+                           np.array([p.photo.range_m for p in photos])), None
+    except MapError as e:
+        return None, e
+
+
+def _circles_beyond(n_photos: int, n_random: int, per_circle: int) -> int:
+    """Circles of random photos begun beyond the first `n_random` of `n_photos`."""
+    return math.ceil(max(n_photos - n_random, 0) / per_circle)
+
+
+def _start_adaptive(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budget: int,
+                    rcfg: RandomExplorationConfig, config: AdaptiveConfig, rng: np.random.Generator,
+                    obs: MissionObserver, journal) -> tuple[AdaptiveMission, MissionResult]:
+    """Random exploration, the initial map (`_first_map`) and the first vision fix;
+    committed as round 0."""
+    stage = RandomStage(robot, start_pose, rcfg, rng, obs, journal, photo_budget)
+    rmap = _first_map(stage, robot, n_random, config)
+    photos, body = stage.photos, stage.body
     for i, cam in rmap.cameras.items():
         photos[i].camera = cam
     log.info(f"initial map: {rmap.registered}/{len(photos)} photos posed, {len(rmap.points)} points, "
@@ -151,8 +220,8 @@ def run_mission(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budge
         raise InputError(f"{n_random} random photos exceed the photo budget of {photo_budget}")
     state = journal.adaptive_state()
     if state is None:
-        mission, result = _start_adaptive(robot, start_pose, n_random, random_config or RandomExplorationConfig(),
-                                          config, rng, obs, journal)
+        mission, result = _start_adaptive(robot, start_pose, n_random, photo_budget,
+                                          random_config or RandomExplorationConfig(), config, rng, obs, journal)
     else:
         mission, result = _resume_adaptive(robot, state, config, rng, obs, journal)
     adaptive_rounds(mission, result, photo_budget, journal)

@@ -75,7 +75,8 @@ class Body:
         return motion
 
 
-def _steps_per_circle(config: RandomExplorationConfig) -> int:
+def steps_per_circle(config: RandomExplorationConfig) -> int:
+    """Photos in a full circle."""
     return max(1, int(round(2 * np.pi / config.circle_step_rad)))
 
 
@@ -103,7 +104,7 @@ def random_exploration(robot: Robot, start_pose: np.ndarray,
     dead reckoning, to keep using after this stage (made here when None)."""
     rng = rng or np.random.default_rng(0)
     body = body or Body(robot, start_pose)
-    n, circle, per_circle = 0, 0, _steps_per_circle(config)
+    n, circle, per_circle = 0, 0, steps_per_circle(config)
     while n < config.n_photos:
         readings = []  # (compass heading, ultrasonic range) per photo of the circle
         for k in range(per_circle):

@@ -38,7 +38,7 @@ def test_explore_runs_with_a_seeded_spec(tmp_path):
 
 def test_explore_in_an_apartment_reports_rooms_and_why_it_stopped(tmp_path):
     report = random_explore(tmp_path, "synthetic:apartment?seed=5", 4, 80)
-    assert report["stopped_because"] == "budget" and report["photos"] == 4
+    assert report["stopped_because"] == "budget" and report["photos"] == report["random_photos"] == 4
     assert len(report["rooms"]) >= 2 and len(report["rooms_visited"]) == 1  # 4 photos: one circle, one room
     assert set(report["rooms_visited"]) <= set(report["rooms"])
     assert report["localization_error_m"] is None and report["map_scale_error"] is None  # no adaptive stage, no map

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 
 from ibr.camera import Camera, intrinsics_from_fov
-from robot.mission.floor_scale import FloorScaleConfig, floor_pixels, floor_scale, sample
+from robot.mission.floor_scale import FloorScaleConfig, floor_pixels, floor_scale, median_standard_error, sample
 from robot.protocol import forward_camera_mount, robot_camera
 
 STOPS = np.array([[0.0, 0.0], [0.8, 0.3], [0.3, 0.9]])
@@ -35,11 +35,11 @@ def _photo(cam: Camera, texture: np.ndarray, box: tuple[float, float, float]) ->
     return np.repeat((img * 255).round().astype(np.uint8)[..., None], 3, axis=2)
 
 
-def _scene(map_scale: float, rng, yaw_err_deg: float = 0.0):
+def _scene(map_scale: float, rng, yaw_err_deg: float = 0.0, stop_scales=(1.0, 1.0, 1.0)):
     """(images, map cameras): photos of three stops at headings 0, 15 and 30 degrees, the
     map's cameras with their horizontal positions scaled by `map_scale` about the first stop
-    and each turned about the vertical by a random error of `yaw_err_deg` (standard
-    deviation, degrees), as SfM's are."""
+    (and stop s's by `stop_scales[s]` more: a wrong layout) and each turned about the vertical
+    by a random error of `yaw_err_deg` (standard deviation, degrees), as SfM's are."""
     K, size = intrinsics_from_fov(60.0, 320, 240), (320, 240)
     mount = forward_camera_mount(HEIGHT, 0.05)
     texture = _floor_texture(rng)
@@ -50,7 +50,7 @@ def _scene(map_scale: float, rng, yaw_err_deg: float = 0.0):
             i = 3 * s + h
             images[i] = _photo(true, texture, (1.8, 0.6, 0.15))
             c = true.center
-            moved = np.r_[STOPS[0] + map_scale * (c[:2] - STOPS[0]), c[2]]
+            moved = np.r_[STOPS[0] + map_scale * stop_scales[s] * (c[:2] - STOPS[0]), c[2]]
             a = np.radians(rng.normal(0.0, yaw_err_deg))
             turn = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1.0]])
             T = true.cam_from_world.copy()
@@ -85,3 +85,18 @@ def test_no_pairs_without_baselines():
     one_stop = {i: c for i, c in cams.items() if i < 3}
     k, fits = floor_scale({i: images[i] for i in one_stop}, one_stop)
     assert np.isnan(k) and not fits
+
+
+def test_no_scale_from_pairs_that_disagree():
+    """Stop 2 is mapped 25 % farther out than stop 1: a wrong layout, not a wrong scale. The
+    pairs' factors spread, the median's standard error is above 1 %, and no scale is given
+    (the mission takes another circle instead, `mission._first_map`)."""
+    images, cams = _scene(1.0, np.random.default_rng(3), stop_scales=(1.0, 0.96, 1.2))
+    k, fits = floor_scale(images, cams)
+    assert len(fits) >= FloorScaleConfig().min_pairs and np.isnan(k), (k, len(fits))
+    assert median_standard_error(np.array([f.log_k for f in fits])) > FloorScaleConfig().max_standard_error
+
+
+def test_the_standard_error_of_a_median_of_normal_samples():
+    x = np.random.default_rng(0).normal(0.0, 0.02, 400)
+    assert abs(median_standard_error(x) - np.sqrt(np.pi / 2) * 0.02 / 20) < 0.0003
