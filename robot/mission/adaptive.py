@@ -145,7 +145,8 @@ class AdaptiveConfig:
     """Map building (SfM, triangulation, Poisson)."""
     extra_random_circles: int = 2
     """Circles of random photos added, one at a time, while SfM cannot map the random stage
-    or its map has no floor seen from two stops to check its scale (`mission._first_map`).
+    or the floor seen from two stops does not check its map's scale (too few pairs, or
+    pairs that disagree: `mission._first_map`).
     Each circle is a new stop; two bound the cost at 72 photos of the paper's 261 with
     10 degree steps (apartment seed 5: the stage's three circles stood at two spots)."""
     filter: MissionFilterConfig = field(default_factory=MissionFilterConfig)

@@ -9,9 +9,9 @@ into photo j and compared; the k whose warp matches best (a robust photometric c
 over log k, then refined jointly with a small turn of photo j about the vertical: SfM's
 headings are off by tenths of a degree, which the floor's parallax alone would take for
 scale) is the pair's estimate of true / map scale. The pairs' estimates are combined by
-their median (`floor_scale`), none when they disagree; pairs need a baseline and a common floor (`candidate_pairs`),
-so a map of one stop gets none. Everything is relative to the camera height h (floor range,
-baselines) and the image (intensities in [0, 1]).
+their median (`floor_scale`), none when they disagree; pairs need a baseline and a common
+floor (`candidate_pairs`), so a map of one stop gets none. Everything is relative to the
+camera height h (floor range, baselines) and the image (intensities in [0, 1]).
 """
 
 from __future__ import annotations

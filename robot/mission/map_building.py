@@ -116,8 +116,8 @@ class RobotMap:
     registered: int = 0
     floor_scaled: bool | None = None
     """The first map's: True when the floor seen from two stops fixed its scale
-    (`floor_scale`); False when too few pairs of photos did (a map of one stop has no
-    baseline), so its scale is the placement's, unchecked; None: not tried."""
+    (`floor_scale`); False when too few pairs of photos saw it (a map of one stop has no
+    baseline) or they disagree, so its scale is the placement's, unchecked; None: not tried."""
 
     def poses(self, cam_from_robot: np.ndarray) -> dict[int, np.ndarray]:
         """SE(2) robot pose (x, y, theta) of each mapped photo (the mount undone)."""
@@ -382,10 +382,12 @@ def _floor_scaled(images: list[np.ndarray], cameras: dict[int, Camera], pts: np.
     the camera's height) by the floor's factor (`floor_scale`), and True; as it was without
     one, and False."""
     k, fits = floor_scale({i: images[i] for i in cameras}, cameras, config)
+    q = np.percentile([f.log_k for f in fits], [25, 75]) if fits else np.zeros(2)
     if not np.isfinite(k):
-        log.info(f"initial map: no floor scale ({len(fits)} pairs of photos count)")
+        why = (f"only {len(fits)} pairs of photos count" if len(fits) < config.min_pairs else
+               f"its {len(fits)} pairs of photos disagree, quartiles {np.exp(q[0]):.4f}-{np.exp(q[1]):.4f}")
+        log.info(f"initial map: no floor scale ({why})")
         return cameras, pts, seen_from, False
-    q = np.percentile([f.log_k for f in fits], [25, 75])
     log.info(f"initial map: the floor scales it by {k:.4f} ({len(fits)} pairs of photos, quartiles "
              f"{np.exp(q[0]):.4f}-{np.exp(q[1]):.4f})")
     origin = np.r_[rig.estimates[0, :2], rig.height]
