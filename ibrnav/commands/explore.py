@@ -62,6 +62,7 @@ def run(args: argparse.Namespace) -> int:
               "pnp_fixes": result.fixes, "pnp_failures": result.failed_fixes,
               "stopped_because": result.stopped_because, "stop_reason": result.stop_reason,
               "localised_at_end": result.localised, "final_spread_m": result.final_spread_m,
+              "start_anchored": result.start_anchored,
               **_truth_report(world, robot, result), "position_errors": obs.error_summary(),
               "seconds": seconds}
     report["eval_capture"] = _eval_capture(world, robot, result, args.eval_poses, args.seed)

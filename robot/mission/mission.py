@@ -20,7 +20,8 @@ from ibr.errors import InputError
 from robot.mission.adaptive import AdaptiveConfig, AdaptiveMission, start_filter
 from robot.mission.journal import MissionJournal, restore_adaptive
 from robot.mission.localizer import FilteredBody, MissionLocalizer
-from robot.mission.map_building import MapError, RobotMap, initial_map
+from robot.mission.circles import circle_ids
+from robot.mission.map_building import MapConfig, MapError, RobotMap, initial_map
 from robot.mission.observer import MissionObserver, MissionPhoto
 from robot.mission.random_stage import Body, RandomExplorationConfig, random_exploration, steps_per_circle
 from robot.mission.watchdog import watchdog
@@ -53,6 +54,11 @@ class MissionResult:
     """Whether the robot knows where it is at the end: the spread within
     `MissionFilterConfig.relocalise_std_m` (None without a filter). Lost, the poses of its
     last photos are guesses: a report says so instead of passing them off as a capture."""
+
+    start_anchored: bool | None = None
+    """Whether SfM posed a photo of the start circle, so the map's place in the world rests
+    on photos taken at the known start (`start_anchored`; None: no first map this run, or
+    a resumed one, whose first map the journal does not keep)."""
 
     @property
     def model_photos(self) -> list[MissionPhoto]:
@@ -159,6 +165,31 @@ def _circles_beyond(n_photos: int, n_random: int, per_circle: int) -> int:
     return math.ceil(max(n_photos - n_random, 0) / per_circle)
 
 
+def start_anchored(cameras: dict, photos: list[MissionPhoto], config: MapConfig = MapConfig()) -> bool:
+    """Whether the map's `cameras` {photo index: Camera} hold a photo of the random stage's
+    first circle, taken at the known start (the `photos`' dead reckoning tells the circles
+    apart, `circle_ids`). When none does, `place_models` put the map at the start by the
+    odometry of the drives alone: apartments 2 and 9 had their whole first map 16-27 cm off
+    the world, and every later fix with it (SfM had posed no photo of their start circles;
+    PnP of those photos against the map found 1 of 36 and 0 of 36)."""
+    random = [i for i, p in enumerate(photos) if p.stage == "random"]
+    circle = circle_ids(np.array([photos[i].estimate for i in random]).reshape(-1, 3), config.circles)
+    return any(i in cameras for i, c in zip(random, circle) if c == 0)
+
+
+def _warn_unanchored(rmap: RobotMap, photos: list[MissionPhoto], config: MapConfig) -> bool:
+    """`start_anchored` of the first map, with a warning naming the odometry it rests on when
+    it is not."""
+    if start_anchored(rmap.cameras, photos, config):
+        return True
+    start = photos[0].estimate[:2]
+    d = min(float(np.hypot(*(photos[i].estimate[:2] - start))) for i in rmap.cameras)
+    log.warning(f"initial map: SfM posed no photo of the start circle; the map stands at the known start by "
+                f"{d:.1f} m of odometry, so its place in the world may be off by about "
+                f"{100 * config.circles.odometry_drift * d:.0f} cm")
+    return False
+
+
 def _start_adaptive(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budget: int,
                     rcfg: RandomExplorationConfig, config: AdaptiveConfig, rng: np.random.Generator,
                     obs: MissionObserver, journal) -> tuple[AdaptiveMission, MissionResult]:
@@ -171,7 +202,7 @@ def _start_adaptive(robot: Robot, start_pose: np.ndarray, n_random: int, photo_b
         photos[i].camera = cam
     log.info(f"initial map: {rmap.registered}/{len(photos)} photos posed, {len(rmap.points)} points, "
                  f"{len(rmap.mesh.faces)} faces")
-    result = MissionResult(photos, rmap)
+    result = MissionResult(photos, rmap, start_anchored=_warn_unanchored(rmap, photos, config.map))
     mission = AdaptiveMission(robot, start_filter(robot, body, photos, rmap, config, rng), photos, rmap,
                               config, rng, obs)
     mission.take_photo("localise")

@@ -98,3 +98,18 @@ def test_a_resumed_stage_first_takes_the_whole_circles_its_journal_began(monkeyp
     stage = mission.RandomStage(robot, START, STEP, np.random.default_rng(9), MissionObserver(), Journal(), 100)
     mission._first_map(stage, robot, 24, AdaptiveConfig())
     assert calls == [36] and stage.photos[:30] == logged
+
+
+def test_a_map_without_a_photo_of_the_start_circle_says_its_place_is_odometry(office, caplog):
+    """The robot knows its start; a map whose start circle SfM did not pose stands there
+    only by the odometry of the drives (apartments 2 and 9: the whole map 16-27 cm off)."""
+    stage = _stage(office, 100)
+    stage.take(36)  # three circles of 12
+    assert mission.start_anchored({3: None, 20: None}, stage.photos)
+    assert not mission.start_anchored({20: None, 30: None}, stage.photos)
+
+    class Posed:
+        cameras = {20: None, 30: None}
+
+    assert not mission._warn_unanchored(Posed(), stage.photos, mission.MapConfig())
+    assert "SfM posed no photo of the start circle" in caplog.text and "odometry" in caplog.text
