@@ -82,7 +82,8 @@ class SonarGrid:
             t = np.linspace(0.0, 1.0, n)
             xy = aa[:, None] + t[None, :, None] * (bb - aa)[:, None]  # (k, n, 2)
             i, j = self.cells(xy.reshape(-1, 2))
-            own = (i == np.repeat(self.cells(aa)[0], n)) & (j == np.repeat(self.cells(aa)[1], n))
+            ai, aj = self.cells(aa)
+            own = (i == np.repeat(ai, n)) & (j == np.repeat(aj, n))
             ok = (i >= 0) & (i < H) & (j >= 0) & (j < W) & ~own
             hit = np.zeros(len(i), bool)
             hit[ok] = occupied[i[ok], j[ok]]

@@ -118,13 +118,18 @@ def project_moved(cam_i: Camera, cam_j: Camera, X: np.ndarray, log_k: np.ndarray
     return out
 
 
+def in_image(p: np.ndarray, width: int, height: int) -> np.ndarray:
+    """(N,) bool: the pixels p (K, N, 2) of every one of K warps lie inside a photo of
+    `width` x `height` (bilinear sampling reaches the last row and column)."""
+    return np.all((p[..., 0] >= 0) & (p[..., 0] <= width - 1) & (p[..., 1] >= 0) & (p[..., 1] <= height - 1),
+                  axis=0)
+
+
 def pair_cost(gi: np.ndarray, gj: np.ndarray, uv_i: np.ndarray, uv_j: np.ndarray,
               robust: float) -> tuple[np.ndarray, int]:
     """((K,) mean Geman-McClure cost of intensity differences between photo i at `uv_i` (N, 2)
     and photo j at `uv_j` (K, N, 2) (bilinear); only pixels inside j for every K count; and their number)."""
-    h, w = gj.shape
-    inside = np.all((uv_j[..., 0] >= 0) & (uv_j[..., 0] <= w - 1) & (uv_j[..., 1] >= 0) & (uv_j[..., 1] <= h - 1),
-                    axis=0)
+    inside = in_image(uv_j, gj.shape[1], gj.shape[0])
     if not inside.any():
         return np.full(len(uv_j), np.nan), 0
     a = gi[uv_i[inside, 1].astype(int), uv_i[inside, 0].astype(int)]
@@ -166,7 +171,7 @@ def refine(gi, gj, cam_i: Camera, cam_j: Camera, uv: np.ndarray, X: np.ndarray, 
     for _ in range(config.gn_iterations):
         p = project_moved(cam_i, cam_j, X, np.array([th[0], th[0] + eps]), th[1])
         p = np.concatenate([p, project_moved(cam_i, cam_j, X, np.array([th[0]]), th[1] + eps)])
-        ok = np.all((p[..., 0] >= 0) & (p[..., 0] <= w - 1) & (p[..., 1] >= 0) & (p[..., 1] <= h - 1), axis=0)
+        ok = in_image(p, w, h)
         if ok.sum() < config.min_pixels:
             return th[0], th[1], np.inf
         b, bx, by = (sample(g, p[0, ok]) for g in (gj, gx, gy))
@@ -230,8 +235,7 @@ def candidate_pairs(cameras: dict[int, Camera], config: FloorScaleConfig) -> lis
             if j == i or not config.min_baseline_h <= base <= config.max_baseline_h:
                 continue
             p = project_moved(ci, cj, X, np.array([0.0, 0.01]))
-            inside = np.all((p[..., 0] >= 0) & (p[..., 0] <= cj.width - 1) & (p[..., 1] >= 0)
-                            & (p[..., 1] <= cj.height - 1), axis=0)
+            inside = in_image(p, cj.width, cj.height)
             if inside.mean() < config.min_overlap:
                 continue
             par = np.linalg.norm(p[1, inside] - p[0, inside], axis=1) / 0.01

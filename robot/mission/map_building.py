@@ -382,14 +382,14 @@ def _floor_scaled(images: list[np.ndarray], cameras: dict[int, Camera], pts: np.
     the camera's height) by the floor's factor (`floor_scale`), and True; as it was without
     one, and False."""
     k, fits = floor_scale({i: images[i] for i in cameras}, cameras, config)
-    q = np.percentile([f.log_k for f in fits], [25, 75]) if fits else np.zeros(2)
+    q = np.exp(np.percentile([f.log_k for f in fits], [25, 75])) if fits else np.ones(2)
+    quartiles = f"quartiles {q[0]:.4f}-{q[1]:.4f}"
     if not np.isfinite(k):
         why = (f"only {len(fits)} pairs of photos count" if len(fits) < config.min_pairs else
-               f"its {len(fits)} pairs of photos disagree, quartiles {np.exp(q[0]):.4f}-{np.exp(q[1]):.4f}")
+               f"its {len(fits)} pairs of photos disagree, {quartiles}")
         log.info(f"initial map: no floor scale ({why})")
         return cameras, pts, seen_from, False
-    log.info(f"initial map: the floor scales it by {k:.4f} ({len(fits)} pairs of photos, quartiles "
-             f"{np.exp(q[0]):.4f}-{np.exp(q[1]):.4f})")
+    log.info(f"initial map: the floor scales it by {k:.4f} ({len(fits)} pairs of photos, {quartiles})")
     origin = np.r_[rig.estimates[0, :2], rig.height]
     cams, P = rescaled(cameras, np.vstack([pts, seen_from]), k, origin)
     return cams, P[:len(pts)], P[len(pts):], True
