@@ -41,6 +41,13 @@ def test_leaves_each_circle_towards_the_longest_ultrasonic_range(run):
     assert abs(wrap_angle(heading - best)) < np.radians(8) or sum(s.bumps for s in shots[36:37]) > 0
 
 
+def test_the_first_drive_is_short(run):
+    _, robot, cfg, shots = run
+    true = np.array([t["pose"] for t in robot.truth])
+    assert shots[36].bumps == 0
+    assert np.hypot(*(true[36, :2] - true[35, :2])) == pytest.approx(cfg.first_drive_m, abs=0.01)
+
+
 def test_stays_in_free_space_and_dead_reckoning_stays_close(run):
     world, robot, _, shots = run
     true = np.array([t["pose"] for t in robot.truth])
