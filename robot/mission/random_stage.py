@@ -43,7 +43,7 @@ class RandomExplorationConfig:
     random one, as the paper's robot). The first circle, taken at the known start, is the
     only thing that ties the map to the world: when SfM poses none of its photos, the map
     stands at the start by the odometry of the first drive alone, ~15 % of its length off
-    (apartments 2, 9 and 14: the whole map 19-25 cm off, SfM had posed none of the photos of
+    (apartments 2, 9 and 14: the whole map 10-25 cm off, SfM had posed none of the photos of
     their start circles, 1.0-1.8 m before the next). A short drive keeps the two circles'
     views overlapping, so SfM links them. `drive_min_m`'s length: the robot's, not a scene's."""
     backup_m: float = 0.2
