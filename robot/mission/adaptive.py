@@ -17,7 +17,8 @@ From the map of the photos so far (`robot.mission.map_building`), each round:
    target-node switching within `switch_m` on the estimate of an SE(2) particle filter
    (`robot.mission.localizer`): odometry and compass between nodes, *vision* at the nodes
    (SIFT + RANSAC PnP against the map, `localization.feature_localizer`, as a mixture
-   proposal, only when level, `max_fix_tilt_px`; after a failed fix it looks the way the
+   proposal, only when level, `max_fix_tilt_px`; a localise photo first turns to the map's
+   points, `robot.mission.look_heading`; after a failed fix it looks the way the
    nearest map photo looked and tries again; goal photos without a fix stay out of the
    map's tracks), and an extra photo when the filter's spread grows too large: the plan
    consumes the filter's estimate, never a simulator's truth. On an obstacle it
@@ -55,6 +56,7 @@ from ibr.proxy.triangulation import TriangulationConfig, sift_features
 from localization.feature_localizer import FeatureLocalizerConfig, FeatureMap
 from localization.motion_models import wrap_angle
 from robot.mission.localizer import FilteredBody, MissionFilterConfig, MissionLocalizer
+from robot.mission.look_heading import LookConfig, look_heading
 from robot.mission.map_building import (MapConfig, RobotMap, Tracks, at_mount_height, extend_map, robot_pose,
                                         stereo_tracks)
 from robot.mission.observer import MissionObserver, MissionPhoto
@@ -154,6 +156,9 @@ class AdaptiveConfig:
     repose: ReposeConfig | None = field(default_factory=ReposeConfig)
     """Re-posing every photo by SfM when PnP keeps failing (`robot.mission.repose`), so the
     map follows the robot into rooms it has no points of; None: never."""
+    look: LookConfig | None = field(default_factory=LookConfig)
+    """Before a localise photo, turn to the heading that sees the most map points SIFT can
+    match (`robot.mission.look_heading`); None: photograph wherever the path left the robot."""
 
 
 def pick_goals(poses: np.ndarray, scores: np.ndarray, k: int, separation_m: float) -> np.ndarray:
@@ -288,12 +293,24 @@ class AdaptiveMission:
             if np.hypot(d[0], d[1]) < 0.01 and abs(wrap_angle(d[2])) < np.radians(0.5):
                 return
         failed = self.failed
+        self._face_the_map()
         self.take_photo("localise")
         if self.failed > failed and isinstance(self.body, FilteredBody):
             heading = self._mapped_view_heading()
             if heading is not None:
                 self._face(heading)
                 self.take_photo("localise")
+
+    def _face_the_map(self) -> None:
+        """Turn to the heading from which the estimate sees the most map points SIFT can
+        match (`look_heading`; config `look`), when it sees clearly more than the current one."""
+        if self.config.look is None or not isinstance(self.body, FilteredBody):
+            return
+        heading = look_heading(self.body.est.pose, self.tracks.points, self.tracks.seen_from,
+                               self.robot.intrinsics, self.robot.image_size, self.robot.cam_from_robot,
+                               self.config.localizer.min_inliers, self.config.look)
+        if heading is not None:
+            self._face(heading)
 
     def _mapped_view_heading(self) -> float | None:
         """After a failed fix: the heading (rad) of the nearest map photo (posed by SfM or a

@@ -12,8 +12,10 @@ from explore.path_simplify import plan_path
 from ibr.scene import load_scene
 from ibr.synthetic import make_world
 from localization.feature_localizer import FeatureMap, pose_errors
+from localization.motion_models import wrap_angle
 from robot.mission.adaptive import AdaptiveConfig, AdaptiveMission, pick_goals, start_filter
 from robot.mission.coverage import surface_samples
+from robot.mission.look_heading import heading_counts
 from robot.mission.map_building import RobotMap
 from robot.mission.observer import MissionObserver, MissionPhoto
 from robot.mission.random_stage import Body, RandomExplorationConfig, random_exploration
@@ -123,7 +125,9 @@ def test_gives_a_goal_up_after_k_obstacles(office, monkeypatch):
         return real_drive(distance_m)
 
     monkeypatch.setattr(robot, "drive", always_bumps)
-    monkeypatch.setattr(m, "config", replace(m.config, off_path_m=0.2, max_obstacles=5))
+    # look=None: the localise photos between bumps keep the heading, so the robot backs off
+    # the way it came; turned to the map, it can end walled in by its own 5 bumps ("no path")
+    monkeypatch.setattr(m, "config", replace(m.config, off_path_m=0.2, max_obstacles=5, look=None))
     goals, _, grid = m.choose_goals()
     far = goals[np.argmax(np.hypot(*(goals[:, :2] - m.body.est.pose[:2]).T))]
     try:
@@ -270,6 +274,27 @@ def test_bumps_of_earlier_goals_are_dear_not_walls(office):
         assert plan_path(m._from_here(walls), est, far[0, :2], max_cost=m.config.max_path_cost) is None
     finally:
         m.bumps = []
+
+
+def test_a_localise_photo_first_turns_to_the_map(office):
+    """Turned to the heading whose view holds the fewest matchable map points, the robot
+    turns to the one with the most before its localise photo, and PnP finds its pose there
+    (whether the mission accepts the fix is its checks' business)."""
+    m, robot, _ = office
+    pose = m.body.est.pose
+    headings, counts = heading_counts(pose, m.tracks.points, m.tracks.seen_from, robot.intrinsics,
+                                      robot.image_size, robot.cam_from_robot, m.config.look)
+    assert counts.max() > m.config.look.min_gain * counts.min()  # a turn is worth it
+    m._face(headings[np.argmin(counts)])
+    m._last_view = None
+    n, k = len(robot.truth), len(m.photos)
+    m.localise_here()
+    taken = robot.truth[n]["pose"]  # the first photo after the turn
+    assert abs(wrap_angle(taken[2] - headings[np.argmax(counts)])) < np.radians(15)
+    res = m.fmap.localize(m.photos[k].photo.image, m.template)
+    assert res is not None and res.n_inliers >= m.config.localizer.min_inliers
+    truth = robot_camera(taken, robot.intrinsics, robot.image_size, robot.cam_from_robot)
+    assert np.linalg.norm(res.camera.center - truth.center) < 0.1
 
 
 def test_a_lower_sift_contrast_threshold_localises_on_faint_paint():
