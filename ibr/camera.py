@@ -191,6 +191,12 @@ class Camera:
             uv = uvw[:, :2] / uvw[:, 2:3]
         return uv, z
 
+    def in_image(self, uv: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """(N,) bool: which of a `project` result's pixels `uv` (N, 2), at camera-z `z` (N,),
+        are in front of the camera and inside its image, [0, width) x [0, height)."""
+        with np.errstate(invalid="ignore"):
+            return (z > 0) & np.all(uv >= 0, axis=1) & (uv[:, 0] < self.width) & (uv[:, 1] < self.height)
+
     def unproject(self, uv: np.ndarray, depth: np.ndarray) -> np.ndarray:
         """Pixels (N, 2) at camera-z `depth` (N,) metres -> world points (N, 3)."""
         uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)

@@ -37,7 +37,7 @@ def depth_range(scene: Scene, points: np.ndarray, margin: float) -> tuple[float,
     z_all = []
     for cam in scene.cameras:
         uv, z = cam.project(points)
-        inside = (z > 0) & np.all(uv >= 0, axis=1) & (uv[:, 0] < cam.width) & (uv[:, 1] < cam.height)
+        inside = cam.in_image(uv, z)
         z_all.append(z[inside])
     z = np.concatenate(z_all)
     if len(z) < 10:

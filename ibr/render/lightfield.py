@@ -83,7 +83,7 @@ def focal_plane(camera: Camera, points: np.ndarray) -> np.ndarray:
     """(4,) plane (n, w) with n . X = w: facing `camera` (n = its optical axis) at the median
     camera-z of the `points` (N, 3) inside its view (all points in front if none is inside)."""
     uv, z = camera.project(points)
-    inside = (z > 0) & np.all(uv >= 0, axis=1) & (uv[:, 0] < camera.width) & (uv[:, 1] < camera.height)
+    inside = camera.in_image(uv, z)
     sel = z[inside] if inside.any() else z[z > 0]
     depth = float(np.median(sel)) if len(sel) else 1.0
     n = camera.forward

@@ -22,7 +22,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ibr.camera import Camera
 from localization.pose_views import robot_camera
 
 
@@ -61,13 +60,6 @@ def matchable(points: np.ndarray, seen_from: np.ndarray, centre: np.ndarray, con
             & (ratio <= config.max_scale_ratio) & (ratio >= 1.0 / config.max_scale_ratio))
 
 
-def in_view(camera: Camera, points: np.ndarray) -> np.ndarray:
-    """(N,) bool: `points` (N, 3) in front of `camera` and inside its image."""
-    uv, z = camera.project(points)
-    with np.errstate(invalid="ignore"):
-        return (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < camera.width) & (uv[:, 1] >= 0) & (uv[:, 1] < camera.height)
-
-
 def heading_counts(pose: np.ndarray, points: np.ndarray, seen_from: np.ndarray, K: np.ndarray,
                    size: tuple[int, int], cam_from_robot: np.ndarray,
                    config: LookConfig = LookConfig()) -> tuple[np.ndarray, np.ndarray]:
@@ -80,8 +72,8 @@ def heading_counts(pose: np.ndarray, points: np.ndarray, seen_from: np.ndarray, 
     centre = robot_camera(pose, K, size, cam_from_robot).center
     keep = matchable(points, seen_from, centre, config)
     pts = points[keep]
-    counts = np.array([int(in_view(robot_camera(np.r_[pose[:2], h], K, size, cam_from_robot), pts).sum())
-                       for h in headings])
+    cams = [robot_camera(np.r_[pose[:2], h], K, size, cam_from_robot) for h in headings]
+    counts = np.array([int(cam.in_image(*cam.project(pts)).sum()) for cam in cams])
     return headings, counts
 
 
