@@ -697,10 +697,11 @@ class AdaptiveMission:
             self._sfm_work = Path(tempfile.mkdtemp(prefix="ibrnav_repose_"))
             weakref.finalize(self, shutil.rmtree, self._sfm_work, True)
         known = self._map_cameras()  # the anchors; nothing changes them until the photos join
+        max_s = c.repose.mapping_share * c.step_limit_s if c.step_limit_s else None
         found = repose_photos([p.photo.image for p in self.photos], self.robot.intrinsics,
                               np.array([p.photo.compass_rad for p in self.photos]),
                               np.array([p.stage != "localise" for p in self.photos]), known, c.map,
-                              self._sfm_work, c.repose)
+                              self._sfm_work, c.repose, max_s)
         if isinstance(found, str):
             log.info(f"re-posing by SfM: the map is unchanged: {found}")
             return 0

@@ -151,7 +151,7 @@ def heading_pairs(headings: np.ndarray, max_diff_rad: float) -> np.ndarray:
 
 
 def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, config: MapConfig, work: Path,
-            pairs: np.ndarray | None = None):
+            pairs: np.ndarray | None = None, grow_only: bool = False, max_seconds: float | None = None):
     """pycolmap incremental SfM of `images` (H, W, 3) uint8 with the known shared `K`, matching
     only the photos whose compass `headings` (rad) are within `config.match_heading_rad`
     (`heading_pairs`; or the index `pairs` (P, 2) given).
@@ -159,7 +159,11 @@ def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, confi
     `robot.mission.repose`): photos already there keep their features, pairs already
     matched are not matched again, and the last run's largest model is continued (COLMAP
     registers the new photos into it), so each run extracts, matches and maps only what is
-    new.
+    new. `grow_only`: when there is such a model, grow it and start no other (COLMAP's
+    `multiple_models` off, for a caller that uses the largest model alone,
+    `robot.mission.repose`): the photos that do not join it are not tried again as the
+    seeds of new models, nor, relaxed, as those of more. `max_seconds`: COLMAP's mapping
+    stops after this long and keeps the model it has (None: no limit).
     Returns every reconstruction, largest first (the circles' sectors of headings, or
     photos that share no features, make separate models; `map_from_models` places them)."""
     import pycolmap
@@ -203,10 +207,11 @@ def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, confi
     opts.num_threads, opts.random_seed = config.threads, config.seed
     opts.mapper.num_threads, opts.mapper.random_seed = config.threads, config.seed
     opts.ba_refine_focal_length = opts.ba_refine_principal_point = opts.ba_refine_extra_params = False
-    opts.multiple_models = True  # photos in different rooms often form separate models
+    model = work / "model"  # the largest model of the last run, continued rather than rebuilt
+    opts.multiple_models = not (grow_only and model.is_dir())  # photos in different rooms often form separate models
+    opts.max_runtime_seconds = -1 if max_seconds is None else max(1, int(max_seconds))
     opts.ba_global_frames_ratio = opts.ba_global_points_ratio = 1.4  # fewer global BAs: ~100 photos
     opts.ba_global_max_num_iterations, opts.ba_local_max_num_iterations = 30, 15
-    model = work / "model"  # the largest model of the last run, continued rather than rebuilt
     with colmap_errors_only():
         maps = pycolmap.incremental_mapping(db, img_dir, work / "sparse", opts,
                                             input_path=model if model.is_dir() else "")

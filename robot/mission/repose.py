@@ -57,6 +57,13 @@ class ReposeConfig:
     """Re-pose when this many photos failed their PnP fix since the last re-posing and the
     filter's spread is above `MissionFilterConfig.relocalise_std_m` (a robot that keeps
     localising against its map, or knows where it is, does not need SfM)."""
+    mapping_share: float = 0.5
+    """COLMAP's mapping stops after this share of the watchdog's step limit
+    (`AdaptiveConfig.step_limit_s`) and keeps the model it has, which the next call grows:
+    the rest of the step (extraction, matching, the map's rebuild) fits in the other half,
+    and a slow re-posing costs this call some photos instead of the mission (a
+    re-posing of 569 photos took over the 600 s limit on apartment 9, and the mission
+    stopped with the watchdog's error). A share of the limit, not a time of any scene's."""
     link_tol_m: float = 0.15
     """Two photos taken one after the other are linked when the SfM step between their robot
     poses is the robot's own measure of it (`robot_steps`) within this (m) ..."""
@@ -182,12 +189,13 @@ def repose_pairs(compass_rad: np.ndarray, in_model: np.ndarray, max_heading_rad:
 
 
 def sfm_cameras(images: list[np.ndarray], K: np.ndarray, pairs: np.ndarray, config: MapConfig,
-                work: Path) -> tuple[dict[int, Camera], dict[int, int]]:
+                work: Path, max_seconds: float | None = None) -> tuple[dict[int, Camera], dict[int, int]]:
     """Cameras {photo: Camera, SfM frame} of the largest SfM model of `images` (the photo
     `pairs` (P, 2) matched; `work` keeps the features, matches and model of earlier calls,
-    `map_building.run_sfm`) and each posed photo's number of triangulated observations (its
+    `map_building.run_sfm`, which grows that model alone, its mapping stopped after
+    `max_seconds`) and each posed photo's number of triangulated observations (its
     support)."""
-    rec = run_sfm(images, K, np.zeros(len(images)), config, work, pairs)[0]
+    rec = run_sfm(images, K, np.zeros(len(images)), config, work, pairs, grow_only=True, max_seconds=max_seconds)[0]
     posed = posed_images(rec)
     return ({i: Camera.from_pycolmap(im, rec.cameras[im.camera_id]) for i, im in posed.items()},
             {i: int(im.num_points3D) for i, im in posed.items()})
@@ -195,15 +203,17 @@ def sfm_cameras(images: list[np.ndarray], K: np.ndarray, pairs: np.ndarray, conf
 
 def repose_photos(images: list[np.ndarray], K: np.ndarray, compass_rad: np.ndarray, in_model: np.ndarray,
                   anchors: dict[int, Camera], map_config: MapConfig, work: Path,
-                  config: ReposeConfig = ReposeConfig()) -> tuple[dict[int, Camera], dict[int, int], float] | str:
+                  config: ReposeConfig = ReposeConfig(), max_seconds: float | None = None
+                  ) -> tuple[dict[int, Camera], dict[int, int], float] | str:
     """SfM over every photo (`sfm_cameras` of the `repose_pairs` of their compass headings
     (N,) and whether each is a model photo (N,), in the workspace `work`), placed in the
     map's frame by its `anchors` (`anchored`): ({photo: Camera in the map frame} of every
     photo the largest model posed, their support, the median anchor error m), or why not
-    (SfM failed, or its model does not agree with the anchors)."""
+    (SfM failed, or its model does not agree with the anchors). `max_seconds`: the longest
+    COLMAP's mapping may run (None: no limit)."""
     pairs = repose_pairs(compass_rad, np.asarray(in_model, bool), map_config.match_heading_rad, config.window)
     try:
-        cams, support = sfm_cameras(images, K, pairs, map_config, work)
+        cams, support = sfm_cameras(images, K, pairs, map_config, work, max_seconds)
     except MapError as e:
         return f"SfM failed ({e})"
     placed = anchored(cams, anchors, config)

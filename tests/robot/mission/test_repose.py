@@ -1,5 +1,7 @@
 """Placing an SfM model of all the photos onto the map's own photos (`robot.mission.repose`)."""
 
+import shutil
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -7,7 +9,7 @@ from ibr.camera import Camera, rigid
 from ibr.synthetic import make_world
 from robot.mission.adaptive import AdaptiveConfig, AdaptiveMission, start_filter
 from robot.mission.coverage import surface_samples
-from robot.mission.map_building import RobotMap
+from robot.mission.map_building import MapConfig, RobotMap, posed_images, run_sfm
 from robot.mission.observer import MissionObserver, MissionPhoto
 from robot.mission.random_stage import Body, RandomExplorationConfig, random_exploration
 from robot.mission.repose import ReposeConfig, anchored, odometry_held, similarity_3d
@@ -158,3 +160,39 @@ def test_a_gap_of_unposed_photos_does_not_cut_a_run_from_the_map():
     with_dr = odometry_held(poses, odo, agree, ReposeConfig(), dr)
     assert with_dr == right
     assert odometry_held(poses, odo, agree, ReposeConfig()) < with_dr
+
+
+def _two_rooms_of_photos():
+    """The robot's first circles (40 photos each, as the random stage takes them) in two
+    rooms of an apartment: (robot, photos, compass headings (N,) rad, first room's count)."""
+    world = make_world("apartment", 0)
+    rooms = [r.name for r in world.rooms if r.kind == "room"][:2]
+    images, headings = [], []
+    for k, room in enumerate(rooms):
+        start = next(p for p in (world.start_pose(np.random.default_rng(j)) for j in range(100))
+                     if world.room_at(p[:2]) == room)
+        robot = SimRobot(world, SimRobotConfig(image_size=(320, 240)), np.random.default_rng(k + 1), start_pose=tuple(start))
+        for shot in random_exploration(robot, start, RandomExplorationConfig(n_photos=40, circle_step_rad=np.radians(18)),
+                                       np.random.default_rng(k + 1), Body(robot, start)):
+            images.append(shot.photo.image)
+            headings.append(shot.photo.compass_rad)
+    return robot, images, np.array(headings), 40
+
+
+def test_sfm_grows_the_last_model_alone_and_keeps_it_when_stopped(tmp_path):
+    """A re-posing's SfM (`run_sfm(grow_only=True)`) continues the last call's model of the
+    first room's photos and starts no other: with the second room's photos added, one
+    model comes back (without it, a second model of the other room: 44 and 11 photos when
+    written), grown and holding the last one's photos; and COLMAP stopped after its
+    `max_seconds` keeps the model it has instead of losing it."""
+    robot, images, headings, n = _two_rooms_of_photos()
+    cfg = MapConfig()
+    first = set(posed_images(run_sfm(images[:n], robot.intrinsics, headings[:n], cfg, tmp_path / "a")[0]))
+    assert len(first) >= 10
+    shutil.copytree(tmp_path / "a", tmp_path / "b")
+    grown = run_sfm(images, robot.intrinsics, headings, cfg, tmp_path / "a", grow_only=True)
+    assert len(grown) == 1
+    posed = set(posed_images(grown[0]))
+    assert len(posed) > len(first) and len(first & posed) >= 0.9 * len(first)  # COLMAP may drop a photo it re-judges
+    stopped = run_sfm(images, robot.intrinsics, headings, cfg, tmp_path / "b", grow_only=True, max_seconds=1)
+    assert len(stopped) == 1 and len(first & set(posed_images(stopped[0]))) >= 0.9 * len(first)
