@@ -61,9 +61,10 @@ class ReposeConfig:
     """COLMAP's mapping stops after this share of the watchdog's step limit
     (`AdaptiveConfig.step_limit_s`) and keeps the model it has, which the next call grows:
     the rest of the step (extraction, matching, the map's rebuild) fits in the other half,
-    and a slow re-posing costs this call some photos instead of the mission (a
-    re-posing of 569 photos took over the 600 s limit on apartment 9, and the mission
-    stopped with the watchdog's error). A share of the limit, not a time of any scene's."""
+    and a slow re-posing costs this call some photos instead of the mission (on apartment
+    9, two missions sharing the 2 cores, a re-posing's mapping ran past the 600 s limit
+    and the mission stopped with the watchdog's error). A share of the limit, not a time
+    of any scene's."""
     link_tol_m: float = 0.15
     """Two photos taken one after the other are linked when the SfM step between their robot
     poses is the robot's own measure of it (`robot_steps`) within this (m) ..."""
