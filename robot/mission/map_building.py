@@ -226,6 +226,12 @@ def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, confi
     return recs
 
 
+def forget_model(work: Path) -> None:
+    """The next `run_sfm` in the workspace `work` maps afresh instead of continuing its last
+    model (the photos' features and matches are kept)."""
+    shutil.rmtree(work / "model", ignore_errors=True)
+
+
 def umeyama(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
     """Similarity (s, R (d, d), t (d,)) minimising |dst - (s R src + t)|^2 for (N, d) point
     sets (Umeyama 1991)."""

@@ -38,7 +38,7 @@ from scipy.sparse.csgraph import connected_components
 from ibr.camera import Camera
 from localization.motion_models import wrap_angle
 from robot.mission.circles import rot2d
-from robot.mission.map_building import (MapConfig, MapError, heading_pairs, posed_images, run_sfm,
+from robot.mission.map_building import (MapConfig, MapError, forget_model, heading_pairs, posed_images, run_sfm,
                                          transform_camera, umeyama)
 
 
@@ -210,8 +210,9 @@ def repose_photos(images: list[np.ndarray], K: np.ndarray, compass_rad: np.ndarr
     (N,) and whether each is a model photo (N,), in the workspace `work`), placed in the
     map's frame by its `anchors` (`anchored`): ({photo: Camera in the map frame} of every
     photo the largest model posed, their support, the median anchor error m), or why not
-    (SfM failed, or its model does not agree with the anchors). `max_seconds`: the longest
-    COLMAP's mapping may run (None: no limit)."""
+    (SfM failed, or its model does not agree with the anchors: then the next call maps
+    afresh, `map_building.forget_model`). `max_seconds`: the longest COLMAP's mapping may
+    run (None: no limit)."""
     pairs = repose_pairs(compass_rad, np.asarray(in_model, bool), map_config.match_heading_rad, config.window)
     try:
         cams, support = sfm_cameras(images, K, pairs, map_config, work, max_seconds)
@@ -222,7 +223,8 @@ def repose_photos(images: list[np.ndarray], K: np.ndarray, compass_rad: np.ndarr
         shared = len(set(cams) & set(anchors))
         if shared < config.min_anchors:
             return f"its largest model shares {shared} photos with the map (needs {config.min_anchors})"
+        forget_model(work)  # grown further, a bent or merged model stays so (apartment 2: 5 calls in a row)
         return (f"the map's photos do not fit its largest model ({shared} shared, median error above "
-                f"{100 * config.max_anchor_error_m:.0f} cm)")
+                f"{100 * config.max_anchor_error_m:.0f} cm; the next re-posing maps afresh)")
     T, err = placed
     return {i: transform_camera(c, T) for i, c in cams.items()}, support, err

@@ -12,7 +12,8 @@ from robot.mission.coverage import surface_samples
 from robot.mission.map_building import MapConfig, RobotMap, posed_images, run_sfm
 from robot.mission.observer import MissionObserver, MissionPhoto
 from robot.mission.random_stage import Body, RandomExplorationConfig, random_exploration
-from robot.mission.repose import ReposeConfig, anchored, odometry_held, similarity_3d
+from robot.mission.repose import (ReposeConfig, anchored, odometry_held, repose_pairs, repose_photos, sfm_cameras,
+                                  similarity_3d)
 from robot.protocol import robot_camera
 from robot.sim_robot import SimRobot, SimRobotConfig
 
@@ -196,3 +197,20 @@ def test_sfm_grows_the_last_model_alone_and_keeps_it_when_stopped(tmp_path):
     assert len(posed) > len(first) and len(first & posed) >= 0.9 * len(first)  # COLMAP may drop a photo it re-judges
     stopped = run_sfm(images, robot.intrinsics, headings, cfg, tmp_path / "b", grow_only=True, max_seconds=1)
     assert len(stopped) == 1 and len(first & set(posed_images(stopped[0]))) >= 0.9 * len(first)
+
+
+def test_a_model_that_does_not_fit_the_map_is_not_grown_again(tmp_path):
+    """A re-posing whose SfM model the map's photos do not fit is refused, and the next one
+    maps afresh rather than grow that model further; a model that fits is kept, to grow."""
+    robot, images, headings, n = _two_rooms_of_photos()
+    images, headings, cfg = images[:n], headings[:n], MapConfig()
+    in_model = np.ones(n, bool)
+    pairs = repose_pairs(headings, in_model, cfg.match_heading_rad, ReposeConfig().window)
+    cams, _ = sfm_cameras(images, robot.intrinsics, pairs, cfg, tmp_path)
+    bent = {i: camera_at(c.center + np.r_[np.random.default_rng(i).normal(0, 0.5, 2), 0]) for i, c in cams.items()}
+    refused = repose_photos(images, robot.intrinsics, headings, in_model, bent, cfg, tmp_path)
+    assert isinstance(refused, str) and "do not fit" in refused
+    assert not (tmp_path / "model").exists()
+    placed = repose_photos(images, robot.intrinsics, headings, in_model, cams, cfg, tmp_path)
+    assert not isinstance(placed, str) and placed[2] < 0.01  # the same photos, mapped afresh, fit
+    assert (tmp_path / "model").is_dir()
