@@ -3,6 +3,7 @@
 import shutil
 
 import numpy as np
+import pytest
 from scipy.spatial.transform import Rotation
 
 from ibr.camera import Camera, rigid
@@ -163,7 +164,8 @@ def test_a_gap_of_unposed_photos_does_not_cut_a_run_from_the_map():
     assert odometry_held(poses, odo, agree, ReposeConfig()) < with_dr
 
 
-def _two_rooms_of_photos():
+@pytest.fixture(scope="module")
+def two_rooms():
     """The robot's first circles (40 photos each, as the random stage takes them) in two
     rooms of an apartment: (robot, photos, compass headings (N,) rad, first room's count)."""
     world = make_world("apartment", 0)
@@ -180,13 +182,13 @@ def _two_rooms_of_photos():
     return robot, images, np.array(headings), 40
 
 
-def test_sfm_grows_the_last_model_alone_and_keeps_it_when_stopped(tmp_path):
+def test_sfm_grows_the_last_model_alone_and_keeps_it_when_stopped(two_rooms, tmp_path):
     """A re-posing's SfM (`run_sfm(grow_only=True)`) continues the last call's model of the
     first room's photos and starts no other: with the second room's photos added, one
     model comes back (without it, a second model of the other room: 44 and 11 photos when
     written), grown and holding the last one's photos; and COLMAP stopped after its
     `max_seconds` keeps the model it has instead of losing it."""
-    robot, images, headings, n = _two_rooms_of_photos()
+    robot, images, headings, n = two_rooms
     cfg = MapConfig()
     first = set(posed_images(run_sfm(images[:n], robot.intrinsics, headings[:n], cfg, tmp_path / "a")[0]))
     assert len(first) >= 10
@@ -199,10 +201,10 @@ def test_sfm_grows_the_last_model_alone_and_keeps_it_when_stopped(tmp_path):
     assert len(stopped) == 1 and len(first & set(posed_images(stopped[0]))) >= 0.9 * len(first)
 
 
-def test_a_model_that_does_not_fit_the_map_is_not_grown_again(tmp_path):
+def test_a_model_that_does_not_fit_the_map_is_not_grown_again(two_rooms, tmp_path):
     """A re-posing whose SfM model the map's photos do not fit is refused, and the next one
     maps afresh rather than grow that model further; a model that fits is kept, to grow."""
-    robot, images, headings, n = _two_rooms_of_photos()
+    robot, images, headings, n = two_rooms
     images, headings, cfg = images[:n], headings[:n], MapConfig()
     in_model = np.ones(n, bool)
     pairs = repose_pairs(headings, in_model, cfg.match_heading_rad, ReposeConfig().window)
