@@ -549,9 +549,9 @@ def _levelled(rec, rig: _Rig):
     walls a repeated polka-dot wallpaper) one SfM run of its first 108 photos had 179 such
     points 0.2-0.8 m under a floor of 78. Five SfM runs of those photos, the model's floor
     scale from all points against from those two circles saw (the placed map's scale error):
-    -22 against -2 % (30 %; the other map not measured), -12 against +3 % (7.0 against 0.4 %), -63
-    against +1 % (9.7 against 3.7 %), +1.5 against +2.4 % (0.2 against 1.0 %), and a wrong
-    model either way, left out by the placement (0.2 % both). On the first maps of
+    -22 against -2 % (30 %; the other map not measured), -12 against +3 % (7.0 against
+    0.4 %), -63 against +1 % (9.7 against 3.7 %), +1.5 against +2.4 % (0.2 against 1.0 %),
+    and a wrong model either way, left out by the placement (0.2 % both). On the first maps of
     apartments 0-4 and 6-19 and offices 0-4, one SfM run each, no map's scale moved by more
     than 0.1 % (apartment 2's posed 86 photos instead of 97)."""
     posed = posed_images(rec)
