@@ -38,6 +38,7 @@ from __future__ import annotations
 import logging
 import shutil
 import tempfile
+import time
 import weakref
 from dataclasses import dataclass, field, replace
 from functools import partial
@@ -652,6 +653,7 @@ class AdaptiveMission:
         where it was, not only at its goals (apartment 7's first-round map, grown so, gave
         8 level fixes in the next round's 96 photos instead of 2). Then re-pose by SfM when
         PnP keeps failing, even in a round that reached no goal (the robot is most lost there)."""
+        started = time.perf_counter()
         cfg = self.config.localizer.triangulation
         cams = self._model_cameras()
         new_ids = {i for i in cams if any(self.photos[i] is q for q in new)}
@@ -670,7 +672,7 @@ class AdaptiveMission:
         r = self.config.repose
         if (r is not None and self.failed - self.failed_at_repose >= r.after_failures
                 and self._spread() > self.config.filter.relocalise_std_m):
-            self.repose()
+            self.repose(started)
 
     def _odometry_held(self, cams: dict[int, Camera], known: dict[int, Camera]) -> set[int]:
         """The photos of the re-posed `cams` {photo: Camera, map frame} that the odometry ties
@@ -683,25 +685,34 @@ class AdaptiveMission:
                                    for p in self.photos])  # the adaptive stage's; none before a resume
         return odometry_held(poses, odometry, agree, self.config.repose, dead_reckoning)
 
-    def repose(self) -> int:
+    def repose(self, started: float | None = None) -> int:
         """Re-pose every photo by SfM, placed on the map's own photos (`robot.mission.repose`).
         Photos the map lacks join it at their SfM pose: model photos unposed or posed only at
         the filter's estimate, and localise photos no fix posed (tracks only, `reposed`),
         each only where the odometry ties it to map photos SfM agrees with (`_odometry_held`).
         Their tracks extend the map, so PnP works there from now on. When the robot's last
         photo, taken where it still stands, is one of them, its pose is the filter's
-        measurement, as a fix would be. Returns how many photos joined the map."""
+        measurement, as a fix would be. SfM runs in a child process stopped when the step,
+        begun at `started` (`time.perf_counter()`; None: now), has run
+        `ReposeConfig.time_share` of `step_limit_s`; the map is then unchanged. Returns how
+        many photos joined the map."""
         c = self.config
         self.failed_at_repose = self.failed
         if self._sfm_work is None:  # features and matches kept between calls; removed with the mission
             self._sfm_work = Path(tempfile.mkdtemp(prefix="ibrnav_repose_"))
             weakref.finalize(self, shutil.rmtree, self._sfm_work, True)
         known = self._map_cameras()  # the anchors; nothing changes them until the photos join
-        max_s = c.repose.mapping_share * c.step_limit_s if c.step_limit_s else None
+        max_s = limit = None
+        if c.step_limit_s:
+            max_s = c.repose.mapping_share * c.step_limit_s
+            limit = c.repose.time_share * c.step_limit_s - (0.0 if started is None else time.perf_counter() - started)
+            if limit <= 0:
+                log.info("re-posing by SfM: skipped, the step has used its share of the time limit")
+                return 0
         found = repose_photos([p.photo.image for p in self.photos], self.robot.intrinsics,
                               np.array([p.photo.compass_rad for p in self.photos]),
                               np.array([p.stage != "localise" for p in self.photos]), known, c.map,
-                              self._sfm_work, c.repose, max_s)
+                              self._sfm_work, c.repose, max_s, limit)
         if isinstance(found, str):
             log.info(f"re-posing by SfM: the map is unchanged: {found}")
             return 0

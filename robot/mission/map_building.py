@@ -167,15 +167,46 @@ def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, confi
     stops after this long and keeps the model it has (None: no limit).
     Returns every reconstruction, largest first (the circles' sectors of headings, or
     photos that share no features, make separate models; `map_from_models` places them)."""
-    import pycolmap
+    names = save_images(images, work)
+    return sfm_in_workspace(names, K, headings, config, work, pairs, grow_only, max_seconds)
 
+
+def save_images(images: list[np.ndarray], work: Path) -> list[str]:
+    """The photos' file names in `work`/images (00000.png, ...), the files written for those
+    not there yet (RGB (H, W, 3) uint8 in, PNG out)."""
     img_dir = work / "images"
     img_dir.mkdir(parents=True, exist_ok=True)
     names = [f"{i:05d}.png" for i in range(len(images))]
-    new = [i for i, n in enumerate(names) if not (img_dir / n).exists()]
-    for i in new:
-        cv2.imwrite(str(img_dir / names[i]), images[i][..., ::-1])
+    for i, n in enumerate(names):
+        if not (img_dir / n).exists():
+            cv2.imwrite(str(img_dir / n), images[i][..., ::-1])
+    return names
+
+
+def _unextracted(db: Path, names: list[str]) -> list[str]:
+    """The `names` whose features the database `db` does not hold yet (all, without a
+    database): read from the database, not from which files exist, so a run stopped between
+    saving the photos and extracting their features extracts them next time."""
+    import pycolmap
+
+    if not db.exists():
+        return list(names)
+    database = pycolmap.Database.open(db)
+    try:
+        done = {im.name for im in database.read_all_images() if database.exists_keypoints(im.image_id)}
+    finally:
+        database.close()
+    return [n for n in names if n not in done]
+
+
+def sfm_in_workspace(names: list[str], K: np.ndarray, headings: np.ndarray, config: MapConfig, work: Path,
+                     pairs: np.ndarray | None = None, grow_only: bool = False, max_seconds: float | None = None):
+    """`run_sfm` of the photos `names` already saved in `work`/images (`save_images`)."""
+    import pycolmap
+
+    img_dir = work / "images"
     db = work / "database.db"
+    new = _unextracted(db, names)
     reader = pycolmap.ImageReaderOptions()
     reader.camera_model = "PINHOLE"
     reader.camera_params = ",".join(str(v) for v in (K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5))
@@ -184,7 +215,7 @@ def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, confi
     extract.sift.first_octave = config.sift_first_octave
     if new:
         with colmap_errors_only():
-            pycolmap.extract_features(db, img_dir, [names[i] for i in new], camera_mode=pycolmap.CameraMode.SINGLE,
+            pycolmap.extract_features(db, img_dir, new, camera_mode=pycolmap.CameraMode.SINGLE,
                                       reader_options=reader, extraction_options=extract,
                                       device=pycolmap.Device.cpu)
     matching = pycolmap.FeatureMatchingOptions()
@@ -217,12 +248,16 @@ def run_sfm(images: list[np.ndarray], K: np.ndarray, headings: np.ndarray, confi
         maps = pycolmap.incremental_mapping(db, img_dir, work / "sparse", opts,
                                             input_path=model if model.is_dir() else "")
     if not maps:
-        raise MapError(f"SfM registered none of the {len(images)} photos (too little texture or overlap?)")
+        raise MapError(f"SfM registered none of the {len(names)} photos (too little texture or overlap?)")
     recs = sorted(maps.values(), key=lambda r: -r.num_reg_images())
-    model.mkdir(exist_ok=True)
-    recs[0].write(model)
+    written = work / "model.new"  # replaced whole: a run stopped while writing leaves the last model, or none
+    shutil.rmtree(written, ignore_errors=True)
+    written.mkdir()
+    recs[0].write(written)
+    shutil.rmtree(model, ignore_errors=True)
+    written.rename(model)
     if recs[0].num_reg_images() < config.min_registered:
-        raise MapError(f"SfM registered only {recs[0].num_reg_images()} of {len(images)} photos; "
+        raise MapError(f"SfM registered only {recs[0].num_reg_images()} of {len(names)} photos; "
                        f"need {config.min_registered}")
     return recs
 

@@ -40,6 +40,7 @@ from localization.motion_models import wrap_angle
 from robot.mission.circles import rot2d
 from robot.mission.map_building import (MapConfig, MapError, forget_model, heading_pairs, posed_images, run_sfm,
                                          transform_camera, umeyama)
+from robot.mission.sfm_process import run_sfm_within
 
 
 @dataclass(frozen=True)
@@ -65,6 +66,14 @@ class ReposeConfig:
     9, two missions sharing the 2 cores, a re-posing's mapping ran past the 600 s limit
     and the mission stopped with the watchdog's error). A share of the limit, not a time
     of any scene's."""
+    time_share: float = 0.8
+    """The whole SfM call (features, matching, mapping) runs in a child process, killed when
+    the step has run this share of its limit (`sfm_process`): COLMAP checks its own stop
+    only between registrations, and apartment 2's re-posing (920 photos, three missions on
+    the 2 cores) was still in its mapping when the 600 s limit ended the mission. Killed,
+    the re-posing leaves the map as it was; the rest of the step (the map's rebuild with
+    the photos that joined) fits in the other fifth. A share of the limit, not a time of
+    any scene's."""
     link_tol_m: float = 0.15
     """Two photos taken one after the other are linked when the SfM step between their robot
     poses is the robot's own measure of it (`robot_steps`) within this (m) ..."""
@@ -190,13 +199,21 @@ def repose_pairs(compass_rad: np.ndarray, in_model: np.ndarray, max_heading_rad:
 
 
 def sfm_cameras(images: list[np.ndarray], K: np.ndarray, pairs: np.ndarray, config: MapConfig,
-                work: Path, max_seconds: float | None = None) -> tuple[dict[int, Camera], dict[int, int]]:
+                work: Path, max_seconds: float | None = None, limit_s: float | None = None
+                ) -> tuple[dict[int, Camera], dict[int, int]] | None:
     """Cameras {photo: Camera, SfM frame} of the largest SfM model of `images` (the photo
     `pairs` (P, 2) matched; `work` keeps the features, matches and model of earlier calls,
     `map_building.run_sfm`, which grows that model alone, its mapping stopped after
     `max_seconds`) and each posed photo's number of triangulated observations (its
-    support)."""
-    rec = run_sfm(images, K, np.zeros(len(images)), config, work, pairs, grow_only=True, max_seconds=max_seconds)[0]
+    support). With `limit_s`, SfM runs in a child process killed after that many seconds
+    (`sfm_process.run_sfm_within`); None: it was."""
+    if limit_s is None:
+        rec = run_sfm(images, K, np.zeros(len(images)), config, work, pairs, grow_only=True,
+                      max_seconds=max_seconds)[0]
+    else:
+        rec = run_sfm_within(images, K, config, work, pairs, True, max_seconds, limit_s)
+        if rec is None:
+            return None
     posed = posed_images(rec)
     return ({i: Camera.from_pycolmap(im, rec.cameras[im.camera_id]) for i, im in posed.items()},
             {i: int(im.num_points3D) for i, im in posed.items()})
@@ -204,20 +221,24 @@ def sfm_cameras(images: list[np.ndarray], K: np.ndarray, pairs: np.ndarray, conf
 
 def repose_photos(images: list[np.ndarray], K: np.ndarray, compass_rad: np.ndarray, in_model: np.ndarray,
                   anchors: dict[int, Camera], map_config: MapConfig, work: Path,
-                  config: ReposeConfig = ReposeConfig(), max_seconds: float | None = None
-                  ) -> tuple[dict[int, Camera], dict[int, int], float] | str:
+                  config: ReposeConfig = ReposeConfig(), max_seconds: float | None = None,
+                  limit_s: float | None = None) -> tuple[dict[int, Camera], dict[int, int], float] | str:
     """SfM over every photo (`sfm_cameras` of the `repose_pairs` of their compass headings
     (N,) and whether each is a model photo (N,), in the workspace `work`), placed in the
     map's frame by its `anchors` (`anchored`): ({photo: Camera in the map frame} of every
     photo the largest model posed, their support, the median anchor error m), or why not
     (SfM failed, or its model does not agree with the anchors: then the next call maps
-    afresh, `map_building.forget_model`). `max_seconds`: the longest COLMAP's mapping may
-    run (None: no limit)."""
+    afresh, `map_building.forget_model`), or because SfM ran past `limit_s` seconds
+    (`sfm_cameras`; None: no limit). `max_seconds`: the longest COLMAP's mapping may run
+    (None: no limit)."""
     pairs = repose_pairs(compass_rad, np.asarray(in_model, bool), map_config.match_heading_rad, config.window)
     try:
-        cams, support = sfm_cameras(images, K, pairs, map_config, work, max_seconds)
+        found = sfm_cameras(images, K, pairs, map_config, work, max_seconds, limit_s)
     except MapError as e:
         return f"SfM failed ({e})"
+    if found is None:
+        return f"SfM stopped after {limit_s:.0f} s, its share of the step's time limit"
+    cams, support = found
     placed = anchored(cams, anchors, config)
     if placed is None:
         shared = len(set(cams) & set(anchors))

@@ -216,3 +216,33 @@ def test_a_model_that_does_not_fit_the_map_is_not_grown_again(two_rooms, tmp_pat
     placed = repose_photos(images, robot.intrinsics, headings, in_model, cams, cfg, tmp_path)
     assert not isinstance(placed, str) and placed[2] < 0.01  # the same photos, mapped afresh, fit
     assert (tmp_path / "model").is_dir()
+
+
+def test_sfm_killed_at_its_limit_leaves_the_workspace_to_the_next_call(two_rooms, tmp_path):
+    """A re-posing's SfM runs in a child process killed at its time limit
+    (`sfm_cameras(limit_s=)`, `robot.mission.sfm_process`): the call says so (None) within
+    the limit instead of running on, and the next call in the same workspace maps the
+    photos as one that was never stopped does (features missing from the database are
+    extracted, the last model is whole or absent)."""
+    import time
+
+    robot, images, headings, n = two_rooms
+    cfg = MapConfig()
+    pairs = repose_pairs(headings, np.ones(len(images), bool), cfg.match_heading_rad, ReposeConfig().window)
+    t0 = time.perf_counter()
+    assert sfm_cameras(images, robot.intrinsics, pairs, cfg, tmp_path / "a", limit_s=4.0) is None
+    assert time.perf_counter() - t0 < 15.0
+    cams, support = sfm_cameras(images, robot.intrinsics, pairs, cfg, tmp_path / "a", limit_s=600.0)
+    never, _ = sfm_cameras(images, robot.intrinsics, pairs, cfg, tmp_path / "b")
+    assert len(cams) >= 0.9 * len(never) and len(never) >= n / 2
+    assert set(support) == set(cams) and min(support.values()) > 0
+
+
+def test_sfm_in_a_child_process_reports_its_error(tmp_path):
+    """SfM's own error (`MapError`) crosses from the child process with its message."""
+    from robot.mission.map_building import MapError
+    from robot.mission.sfm_process import run_sfm_within
+
+    blank = [np.full((120, 160, 3), 128, np.uint8) for _ in range(3)]
+    with pytest.raises(MapError, match="registered none"):
+        run_sfm_within(blank, K, MapConfig(), tmp_path, np.array([[0, 1], [1, 2]]), True, None, 120.0)
