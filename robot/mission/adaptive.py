@@ -277,7 +277,7 @@ class AdaptiveMission:
             pose = self.pose_of_camera(res.cam_from_world)
             max_tilt = np.arctan(c.max_fix_tilt_px / self.template.K[0, 0])
             if (abs(centre[2] - self.cam_height) < c.max_fix_height_err_m
-                    and np.hypot(*(pose[:2] - self.body.est.pose[:2])) < max(c.max_fix_jump_m, 3 * self._spread())
+                    and np.hypot(*(pose[:2] - self.body.est.pose[:2])) < max(c.max_fix_jump_m, 3 * self.spread())
                     and self.tilt_of_camera(res.cam_from_world) <= max_tilt):
                 self.fixes += 1
                 return res
@@ -329,7 +329,8 @@ class AdaptiveMission:
                 best, best_d = yaw, d
         return best
 
-    def _spread(self) -> float:
+    def spread(self) -> float:
+        """The filter's position spread (m; 0 without a filter, `MissionLocalizer.spread_m`)."""
         return self.body.est.spread_m if isinstance(self.body, FilteredBody) else 0.0
 
     def take_photo(self, stage: str) -> MissionPhoto:
@@ -434,7 +435,7 @@ class AdaptiveMission:
         worst seed 1.5 -> 4.3 m, goals given up 30 -> 55 %; with this rule 0.23 m, 1.8 m,
         31 %, and the coverage gain kept in part: median 0.18 -> 0.22, not 0.29)."""
         c = self.config
-        if c.frontier_goals_per_round <= 0 or self._sonar is None or self._spread() > c.filter.relocalise_std_m:
+        if c.frontier_goals_per_round <= 0 or self._sonar is None or self.spread() > c.filter.relocalise_std_m:
             return np.zeros((0, 3))
         mask = reachable_mask(self._from_here(grid), self.body.est.pose[:2], c.max_path_cost)
         out: list[np.ndarray] = []
@@ -549,7 +550,7 @@ class AdaptiveMission:
         map's points make dear stay as they are (a wall near the robot is not opened)."""
         H, W = grid.shape
         xy = grid.cell_to_world(np.indices((H, W)).reshape(2, -1).T)
-        r = self.config.robot_radius_m + 2 * self._spread()
+        r = self.config.robot_radius_m + 2 * self.spread()
         here = (np.linalg.norm(xy - self.body.est.pose[:2], axis=1) < r).reshape(H, W)
         return replace(grid, cost=np.where(here & np.isinf(grid.cost), self.config.max_path_cost, grid.cost))
 
@@ -671,7 +672,7 @@ class AdaptiveMission:
             self.fmap = self._feature_map()
         r = self.config.repose
         if (r is not None and self.failed - self.failed_at_repose >= r.after_failures
-                and self._spread() > self.config.filter.relocalise_std_m):
+                and self.spread() > self.config.filter.relocalise_std_m):
             self.repose(started)
 
     def _odometry_held(self, cams: dict[int, Camera], known: dict[int, Camera]) -> set[int]:

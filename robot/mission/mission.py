@@ -315,7 +315,7 @@ def _adaptive_round(mission: AdaptiveMission, result: MissionResult, goals: np.n
     """Visit the round's goals (photos at each one reached) and rebuild the map. A goal
     given up is remembered (`AdaptiveMission.given_up_goals`): none is drawn near it again,
     and this round's goals near it are skipped (apartment 3: five goals in one bed, each
-    given up in turn)."""
+    given up in turn). The log line of a goal given up says the filter's spread then (m)."""
     new, limit = [], mission.config.step_limit_s
     for k, g in enumerate(goals):
         left = photo_budget - len(result.model_photos)
@@ -333,9 +333,9 @@ def _adaptive_round(mission: AdaptiveMission, result: MissionResult, goals: np.n
         else:
             mission.given_up += 1
             mission.given_up_goals.append(np.asarray(g, float))
-            est = mission.body.est.pose
+            est, spread = mission.body.est.pose, mission.spread()
             log.info(f"round {r + 1}: gave up a goal at ({g[0]:.2f}, {g[1]:.2f}) ({mission.give_up_reason}; "
-                     f"estimate ({est[0]:.2f}, {est[1]:.2f}))")
+                     f"estimate ({est[0]:.2f}, {est[1]:.2f}), spread {spread:.2f} m)")
     with watchdog(f"round {r + 1}: rebuilding the map with {len(new)} photos", limit):
         mission.rebuild(new)
 

@@ -41,6 +41,9 @@ class OneGoalPerRound:
     def rebuild(self, new) -> None:
         self.rebuilds += 1
 
+    def spread(self) -> float:
+        return 0.0
+
     near_given_up = AdaptiveMission.near_given_up
 
 
