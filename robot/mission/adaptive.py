@@ -377,11 +377,7 @@ class AdaptiveMission:
         (`given_up_goals`). When the best candidate gains less than `min_gain_rad`, only the
         frontier goals are returned. `n_candidates` and `n_frontier_goals` say how many
         there were (no goal and no candidate: "no reachable goal"; no goal but candidates
-        that gain too little: "complete"). The grid returned, the one the round drives on,
-        keeps the cells around the estimate that `_from_here` made passable for the choice:
-        the goals were reachable through them, and without them a goal drawn beyond them is
-        cut off once the robot has left (apartment 4, traced: of 3 goals given up for "no
-        path", 2 lay in another component of the grid than the robot, 1 in a blocked cell)."""
+        that gain too little: "complete")."""
         c = self.config
         cams = [p.camera for p in self.photos if p.camera is not None and p.stage != "localise"]
         xy = np.array([cam.center[:2] for cam in cams])
@@ -413,7 +409,7 @@ class AdaptiveMission:
         self.obs.map(self.map, free)
         self.obs.sonar(self._sonar)
         self.obs.candidates(cand, scores, goals)
-        return goals, best, self._from_here(grid)
+        return goals, best, grid
 
     def sonar(self) -> SonarGrid:
         """The ultrasonic's occupancy grid (`explore.frontier.sonar_grid`) of every photo's

@@ -221,33 +221,6 @@ def test_an_unlocalised_robot_is_sent_to_no_frontier(office):
         est.set_particles(particles, log_w)
 
 
-def test_the_rounds_goals_stay_reachable_after_the_robot_has_moved(office, monkeypatch):
-    """Goals are drawn where the robot can reach from where it stands, counting the disc
-    around its estimate as passable (`_from_here`: it stands somewhere there). The grid a
-    round drives on keeps that disc: from any goal the robot reaches, every other goal of
-    the round has a path. Here a line of cells no photo saw runs through the robot's
-    estimate, which only the disc crosses (apartments 0 and 4: goals 0.3-0.5 m from a
-    localised robot were given up for "no path", the goal in another component of the
-    grid than the robot, or in a blocked cell, once the disc had moved on with the robot)."""
-    m, _, _ = office
-    x0 = m.body.est.pose[0]
-    nav_grid = m.nav_grid
-
-    def split(free, strict=True):
-        grid = nav_grid(free, strict)
-        column = grid.world_to_cell(np.array([x0, 0.0]))[1]
-        cost = np.array(grid.cost, dtype=float)
-        cost[:, column] = np.inf
-        return replace(grid, cost=cost)
-
-    monkeypatch.setattr(m, "nav_grid", split)
-    goals, _, grid = m.choose_goals()
-    assert (goals[:, 0] < x0).any() and (goals[:, 0] > x0).any()  # goals on both sides of the line
-    for a in goals:
-        for b in goals:
-            assert plan_path(grid, a[:2], b[:2], max_cost=m.config.max_path_cost) is not None
-
-
 def test_a_fix_tilted_out_of_level_is_rejected(office, monkeypatch):
     """The robot's camera is level: a PnP pose at the right place and heading but pitched by
     2 degrees (beyond `max_fix_tilt_px`, 1.2 degrees at this focal length) is a wrong fix
