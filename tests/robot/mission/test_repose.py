@@ -49,7 +49,7 @@ def test_similarity_recovers_a_known_transform():
 
 def test_the_placed_model_is_level_though_the_anchors_stand_in_a_line():
     """Anchors in a row at the camera's height, their heights 1 cm noisy: the centres alone
-    leave the roll about the row free (Umeyama's fit tilts the model by degrees), the
+    leave the roll about the row free (Umeyama's fit tilts the model by over half a degree), the
     cameras' orientations fix it: the placed model's up axis is the map's within 0.1 degree."""
     from robot.mission.map_building import umeyama
 
