@@ -75,7 +75,7 @@ class MapConfig:
     match_heading_rad: float = np.radians(75.0)
     """Photos are matched only with those whose compass headings differ less than this (rad)."""
     seed: int = 0
-    """COLMAP's random seed (reproducible maps)."""
+    """COLMAP's random seed, of its mapping and of each photo pair's verification (reproducible maps)."""
     min_registered: int = 10
     """Fewest photos SfM must register."""
     threads: int = 2
@@ -199,6 +199,24 @@ def _unextracted(db: Path, names: list[str]) -> list[str]:
     return [n for n in names if n not in done]
 
 
+def _camera_in(db: Path) -> int | None:
+    """The id of the camera the database `db` already holds (None: no database or camera).
+    Every photo is the robot's one camera: a later extraction into the same database reuses
+    it rather than add a camera and rig of its own (`extract_features` with
+    `CameraMode.SINGLE` adds one per call; after a run killed during extraction, the next
+    call's model differed from a never-stopped run's, 37 photos against 44)."""
+    import pycolmap
+
+    if not db.exists():
+        return None
+    database = pycolmap.Database.open(db)
+    try:
+        cameras = database.read_all_cameras()
+    finally:
+        database.close()
+    return min(c.camera_id for c in cameras) if cameras else None
+
+
 def sfm_in_workspace(names: list[str], K: np.ndarray, headings: np.ndarray, config: MapConfig, work: Path,
                      pairs: np.ndarray | None = None, grow_only: bool = False, max_seconds: float | None = None):
     """`run_sfm` of the photos `names` already saved in `work`/images (`save_images`)."""
@@ -210,6 +228,9 @@ def sfm_in_workspace(names: list[str], K: np.ndarray, headings: np.ndarray, conf
     reader = pycolmap.ImageReaderOptions()
     reader.camera_model = "PINHOLE"
     reader.camera_params = ",".join(str(v) for v in (K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5))
+    camera = _camera_in(db)
+    if camera is not None:
+        reader.existing_camera_id = camera
     extract = pycolmap.FeatureExtractionOptions()
     extract.num_threads, extract.sift.max_num_features = config.threads, config.max_features
     extract.sift.first_octave = config.sift_first_octave
@@ -220,6 +241,8 @@ def sfm_in_workspace(names: list[str], K: np.ndarray, headings: np.ndarray, conf
                                       device=pycolmap.Device.cpu)
     matching = pycolmap.FeatureMatchingOptions()
     matching.num_threads = config.threads
+    verify = pycolmap.TwoViewGeometryOptions()  # seeded: unseeded, a pair's RANSAC judged it calibrated or
+    verify.ransac.random_seed = config.seed     # planar by chance (72 of 1333 pairs), and the model had 37 or 44 photos
     matched = work / "matched.txt"
     done = set(matched.read_text().splitlines()) if matched.exists() else set()
     if pairs is None:
@@ -231,7 +254,7 @@ def sfm_in_workspace(names: list[str], K: np.ndarray, headings: np.ndarray, conf
         with colmap_errors_only():
             pairing = pycolmap.ImportedPairingOptions(match_list_path=work / "pairs.txt")
             pycolmap.match_image_pairs(db, matching_options=matching, device=pycolmap.Device.cpu,
-                                       pairing_options=pairing)
+                                       pairing_options=pairing, verification_options=verify)
         with matched.open("a") as f:
             f.write("".join(f"{p}\n" for p in todo))
     shutil.rmtree(work / "sparse", ignore_errors=True)
