@@ -124,16 +124,20 @@ def nav_grid_from_points(points: np.ndarray, bounds_xy, config: NavGridConfig = 
 
 
 def reachable_mask(grid: NavGrid, start_xy, max_cost: float, clearance_m: float = 0.0) -> np.ndarray:
-    """(H, W) bool: the cells a robot at start_xy (metres) can reach on the grid, 8-connected
-    (as A* moves) through cells whose cost K <= max_cost and that lie at least clearance_m
-    (metres, e.g. the robot's radius) from every blocked cell. When the robot's own cell
-    fails the test (it stands near furniture), the component of the nearest passing cell
-    is taken. Cells outside the grid are blocked."""
+    """(H, W) bool: the cells a robot at start_xy (metres) can reach on the grid as A* moves,
+    through cells whose cost K <= max_cost and that lie at least clearance_m (metres, e.g.
+    the robot's radius) from every blocked cell. A* steps to 8 neighbours but never cuts
+    the corner of a blocked cell (`explore.astar`), so a diagonal step joins two cells
+    already joined through both their shared neighbours: its components are the
+    4-connected ones (labelled 8-connected, cells touching only at a corner counted as
+    joined, and the mission drew goals A* then found no path to: apartment 0, traced, 2 of
+    its 10 goals given up for "no path"). When the robot's own cell fails the test (it stands near furniture), the
+    component of the nearest passing cell is taken. Cells outside the grid are blocked."""
     passable = np.asarray(grid.cost) <= max_cost
     if clearance_m > 0:
         r = clearance_m / grid.cell_m
         passable &= ndimage.distance_transform_edt(passable) > r
-    labels, n = ndimage.label(passable, structure=np.ones((3, 3), bool))
+    labels, n = ndimage.label(passable)  # 4-connected
     if n == 0:
         return np.zeros(grid.shape, bool)
     H, W = grid.shape

@@ -10,7 +10,7 @@ import trimesh
 from scipy.sparse.csgraph import dijkstra
 
 from explore.astar import GridError, astar, grid_graph, path_cost
-from explore.nav_grid import NavGridConfig, kde_cost, nav_grid_from_points, reachable_at, reachable_mask
+from explore.nav_grid import NavGrid, NavGridConfig, kde_cost, nav_grid_from_points, reachable_at, reachable_mask
 from explore.path_simplify import merge_collinear, plan_path, polyline_cost, segment_cost, simplify_path
 
 
@@ -151,3 +151,28 @@ def test_reachable_mask_is_what_astar_can_reach():
     other = reachable_mask(grid, (3.5, 2.0), max_cost=0.35)
     assert reachable_at(grid, other, xy).tolist() == [False, False, True, True]
     assert not (mask & other).any()
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_reachable_mask_agrees_with_astar_on_every_cell(seed):
+    """On random grids, a cell is in the reachable mask exactly when A* finds a path to it:
+    cells that touch only at a corner are not joined (A* does not cut a blocked corner)."""
+    rng = np.random.default_rng(seed)
+    cost = _random_grid(rng, 14, 14, blocked=0.4)
+    cost[7, 7] = 0.0
+    grid = NavGrid(np.zeros(2), 1.0, np.zeros_like(cost), cost)
+    mask = reachable_mask(grid, (7.5, 7.5), max_cost=0.5)
+    for i, j in np.ndindex(cost.shape):
+        found = plan_path(grid, (7.5, 7.5), (j + 0.5, i + 0.5), max_cost=0.5) is not None
+        assert mask[i, j] == found, (i, j)
+
+
+def test_cells_touching_at_a_corner_are_not_reachable():
+    """A blocked staircase leaves the two sides touching only at corners: no path, and
+    the mask does not cross it either."""
+    cost = np.zeros((6, 6))
+    for k in range(6):
+        cost[k, 5 - k] = np.inf
+    grid = NavGrid(np.zeros(2), 1.0, np.zeros_like(cost), cost)
+    mask = reachable_mask(grid, (0.5, 0.5), max_cost=0.35)
+    assert not mask[5, 5] and plan_path(grid, (0.5, 0.5), (5.5, 5.5), max_cost=0.35) is None
