@@ -131,8 +131,9 @@ def reachable_mask(grid: NavGrid, start_xy, max_cost: float, clearance_m: float 
     already joined through both their shared neighbours: its components are the
     4-connected ones (labelled 8-connected, cells touching only at a corner counted as
     joined, and the mission drew goals A* then found no path to: apartment 0, traced, 2 of
-    its 10 goals given up for "no path"). When the robot's own cell fails the test (it stands near furniture), the
-    component of the nearest passing cell is taken. Cells outside the grid are blocked."""
+    its 10 goals given up for "no path"). When the robot's own cell fails the test (it
+    stands near furniture), the component of the nearest passing cell is taken. Cells
+    outside the grid are blocked."""
     passable = np.asarray(grid.cost) <= max_cost
     if clearance_m > 0:
         r = clearance_m / grid.cell_m

@@ -183,38 +183,24 @@ def save_images(images: list[np.ndarray], work: Path) -> list[str]:
     return names
 
 
-def _unextracted(db: Path, names: list[str]) -> list[str]:
-    """The `names` whose features the database `db` does not hold yet (all, without a
-    database): read from the database, not from which files exist, so a run stopped between
-    saving the photos and extracting their features extracts them next time."""
+def _in_database(db: Path, names: list[str]) -> tuple[list[str], int | None]:
+    """(the `names` whose features the database `db` does not hold yet, the id of the camera
+    it holds or None): all names and None without a database. Read from the database, not
+    from which files exist, so a run stopped between saving the photos and extracting their
+    features extracts them next time. Every photo is the robot's one camera: a later
+    extraction reuses that camera (`extract_features` with `CameraMode.SINGLE` adds a
+    camera and rig per call, one per re-posing of a mission)."""
     import pycolmap
 
     if not db.exists():
-        return list(names)
+        return list(names), None
     database = pycolmap.Database.open(db)
     try:
         done = {im.name for im in database.read_all_images() if database.exists_keypoints(im.image_id)}
+        cameras = [c.camera_id for c in database.read_all_cameras()]
     finally:
         database.close()
-    return [n for n in names if n not in done]
-
-
-def _camera_in(db: Path) -> int | None:
-    """The id of the camera the database `db` already holds (None: no database or camera).
-    Every photo is the robot's one camera: a later extraction into the same database reuses
-    it rather than add a camera and rig of its own (`extract_features` with
-    `CameraMode.SINGLE` adds one per call; after a run killed during extraction, the next
-    call's model differed from a never-stopped run's, 37 photos against 44)."""
-    import pycolmap
-
-    if not db.exists():
-        return None
-    database = pycolmap.Database.open(db)
-    try:
-        cameras = database.read_all_cameras()
-    finally:
-        database.close()
-    return min(c.camera_id for c in cameras) if cameras else None
+    return [n for n in names if n not in done], min(cameras, default=None)
 
 
 def sfm_in_workspace(names: list[str], K: np.ndarray, headings: np.ndarray, config: MapConfig, work: Path,
@@ -224,11 +210,10 @@ def sfm_in_workspace(names: list[str], K: np.ndarray, headings: np.ndarray, conf
 
     img_dir = work / "images"
     db = work / "database.db"
-    new = _unextracted(db, names)
+    new, camera = _in_database(db, names)
     reader = pycolmap.ImageReaderOptions()
     reader.camera_model = "PINHOLE"
     reader.camera_params = ",".join(str(v) for v in (K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5))
-    camera = _camera_in(db)
     if camera is not None:
         reader.existing_camera_id = camera
     extract = pycolmap.FeatureExtractionOptions()
@@ -241,8 +226,10 @@ def sfm_in_workspace(names: list[str], K: np.ndarray, headings: np.ndarray, conf
                                       device=pycolmap.Device.cpu)
     matching = pycolmap.FeatureMatchingOptions()
     matching.num_threads = config.threads
-    verify = pycolmap.TwoViewGeometryOptions()  # seeded: unseeded, a pair's RANSAC judged it calibrated or
-    verify.ransac.random_seed = config.seed     # planar by chance (72 of 1333 pairs), and the model had 37 or 44 photos
+    # seeded: unseeded, a pair's RANSAC judged it calibrated or planar by chance (72 of 1333
+    # pairs between two runs), and the same photos gave a model of 37 or 44
+    verify = pycolmap.TwoViewGeometryOptions()
+    verify.ransac.random_seed = config.seed
     matched = work / "matched.txt"
     done = set(matched.read_text().splitlines()) if matched.exists() else set()
     if pairs is None:

@@ -11,7 +11,7 @@ cannot be interrupted from Python, but a process can be killed: `run_sfm_within`
 re-posing costs its round the re-posing, not the mission its photos.
 
 The workspace stays usable after a kill: the photos are saved by the parent, features are
-extracted for whatever the database lacks (`map_building._unextracted`), COLMAP skips pairs
+extracted for whatever the database lacks (`map_building._in_database`), COLMAP skips pairs
 already matched, and the last model is replaced whole or not at all.
 """
 
