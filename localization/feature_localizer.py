@@ -49,6 +49,10 @@ class FeatureLocalizerConfig:
     """Randomised KD-trees in the FLANN index."""
     kdtree_checks: int = 64
     """Leaves FLANN visits per query descriptor (more: slower, closer to exact)."""
+    kdtree_seed: int = 0
+    """Seed of the randomised KD-trees. FLANN draws their split dimensions from OpenCV's
+    process-wide RNG (`cv::theRNG`), so unseeded the same map matched differently after other
+    maps had been built in the process (a mission's PnP fixes changed with what ran before)."""
     ransac_max_error_px: float = 4.0
     """RANSAC inlier threshold on the reprojection error (pixels of the query image)."""
     min_inliers: int = 15
@@ -120,6 +124,7 @@ class FeatureMap:
         self.matcher = cv2.FlannBasedMatcher(index, dict(checks=config.kdtree_checks))
         if len(descriptors):
             self.matcher.add([np.ascontiguousarray(descriptors, np.float32)])
+            cv2.setRNGSeed(config.kdtree_seed)  # FLANN splits its trees with OpenCV's global RNG
             self.matcher.train()
 
     @classmethod
