@@ -79,7 +79,14 @@ class MapConfig:
     min_registered: int = 10
     """Fewest photos SfM must register."""
     threads: int = 2
-    """Worker threads for feature extraction, matching and mapping."""
+    """Worker threads for feature extraction and matching."""
+    mapping_threads: int = 1
+    """Threads of COLMAP's mapping and bundle adjustment. One, for missions that repeat: with
+    two, Ceres threads every adjustment of over 50,000 residuals (a mission's re-posings of
+    500+ photos) and its sums come in another order, so two missions of one seed parted at
+    round 6's re-posing (apartment 0: map points the same in number, not in value; 8 or 7
+    goals given up at the end). With one they ran the same through round 8. Costs little
+    on 2 cores shared with the renderer (251 s vs 253 s a mission, two run side by side)."""
     poisson: PoissonConfig = field(default_factory=lambda: PoissonConfig(depth=7, max_gap_spacing=4.0, threads=1))
     """Poisson meshing of the oriented points (coarse: the heuristic needs a rough proxy; one
     thread: its OpenMP threads spin and crawl, 10x, on a busy 2-core machine)."""
@@ -183,24 +190,26 @@ def save_images(images: list[np.ndarray], work: Path) -> list[str]:
     return names
 
 
-def _in_database(db: Path, names: list[str]) -> tuple[list[str], int | None]:
-    """(the `names` whose features the database `db` does not hold yet, the id of the camera
-    it holds or None): all names and None without a database. Read from the database, not
-    from which files exist, so a run stopped between saving the photos and extracting their
-    features extracts them next time. Every photo is the robot's one camera: a later
-    extraction reuses that camera (`extract_features` with `CameraMode.SINGLE` adds a
-    camera and rig per call, one per re-posing of a mission)."""
+def _in_database(db: Path, names: list[str]) -> tuple[list[str], list[str], int | None]:
+    """(the `names` whose features the database `db` does not hold yet, the `names` it holds
+    no image of, the id of the camera it holds or None): all names, all names and None
+    without a database. Read from the database, not from which files exist, so a run stopped
+    between saving the photos and extracting their features extracts them next time. Every
+    photo is the robot's one camera: a later extraction reuses that camera
+    (`extract_features` with `CameraMode.SINGLE` adds a camera and rig per call, one per
+    re-posing of a mission)."""
     import pycolmap
 
     if not db.exists():
-        return list(names), None
+        return list(names), list(names), None
     database = pycolmap.Database.open(db)
     try:
-        done = {im.name for im in database.read_all_images() if database.exists_keypoints(im.image_id)}
+        images = {im.name: im.image_id for im in database.read_all_images()}
+        done = {n for n, i in images.items() if database.exists_keypoints(i)}
         cameras = [c.camera_id for c in database.read_all_cameras()]
     finally:
         database.close()
-    return [n for n in names if n not in done], min(cameras, default=None)
+    return [n for n in names if n not in done], [n for n in names if n not in images], min(cameras, default=None)
 
 
 def sfm_in_workspace(names: list[str], K: np.ndarray, headings: np.ndarray, config: MapConfig, work: Path,
@@ -210,7 +219,7 @@ def sfm_in_workspace(names: list[str], K: np.ndarray, headings: np.ndarray, conf
 
     img_dir = work / "images"
     db = work / "database.db"
-    new, camera = _in_database(db, names)
+    new, absent, camera = _in_database(db, names)
     reader = pycolmap.ImageReaderOptions()
     reader.camera_model = "PINHOLE"
     reader.camera_params = ",".join(str(v) for v in (K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5))
@@ -221,6 +230,9 @@ def sfm_in_workspace(names: list[str], K: np.ndarray, headings: np.ndarray, conf
     extract.sift.first_octave = config.sift_first_octave
     if new:
         with colmap_errors_only():
+            if absent:  # numbered in name order first: extraction's threads number them as they finish
+                pycolmap.Database.open(db).close()
+                pycolmap.import_images(db, img_dir, pycolmap.CameraMode.SINGLE, absent, reader)
             pycolmap.extract_features(db, img_dir, new, camera_mode=pycolmap.CameraMode.SINGLE,
                                       reader_options=reader, extraction_options=extract,
                                       device=pycolmap.Device.cpu)
@@ -246,8 +258,8 @@ def sfm_in_workspace(names: list[str], K: np.ndarray, headings: np.ndarray, conf
             f.write("".join(f"{p}\n" for p in todo))
     shutil.rmtree(work / "sparse", ignore_errors=True)
     opts = pycolmap.IncrementalPipelineOptions()
-    opts.num_threads, opts.random_seed = config.threads, config.seed
-    opts.mapper.num_threads, opts.mapper.random_seed = config.threads, config.seed
+    opts.num_threads, opts.random_seed = config.mapping_threads, config.seed
+    opts.mapper.num_threads, opts.mapper.random_seed = config.mapping_threads, config.seed
     opts.ba_refine_focal_length = opts.ba_refine_principal_point = opts.ba_refine_extra_params = False
     model = work / "model"  # the largest model of the last run, continued rather than rebuilt
     opts.multiple_models = not (grow_only and model.is_dir())  # photos in different rooms often form separate models
