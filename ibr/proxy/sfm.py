@@ -32,11 +32,15 @@ class SfmConfig:
     """All photos share one camera (intrinsics estimated once)."""
     min_registered: int = 3
     """Fewest photos the largest reconstruction must register."""
+    seed: int = 0
+    """Seed of COLMAP's pair verification and mapping: the same photos give the same model."""
 
 
 def reconstruct(folder: str | Path, cfg: SfmConfig = SfmConfig(), overwrite: bool = False) -> Path:
     """Reconstruct `folder/images` and write the largest model to `folder/sparse/0`; reuse it
-    when present unless `overwrite`. Returns the model folder."""
+    when present unless `overwrite`. Returns the model folder. Seeded (`SfmConfig.seed`) and
+    numbered in name order, so the same photos give the same photos registered (the poses
+    may still differ in their last digits where COLMAP's threads adjust a large model)."""
     import pycolmap
 
     folder = Path(folder)
@@ -51,10 +55,16 @@ def reconstruct(folder: str | Path, cfg: SfmConfig = SfmConfig(), overwrite: boo
     work.mkdir(parents=True)
     db = work / "database.db"
     mode = pycolmap.CameraMode.SINGLE if cfg.single_camera else pycolmap.CameraMode.AUTO
+    verify = pycolmap.TwoViewGeometryOptions()
+    verify.ransac.random_seed = cfg.seed
+    mapping = pycolmap.IncrementalPipelineOptions()
+    mapping.random_seed = mapping.mapper.random_seed = cfg.seed
     with colmap_errors_only():
+        pycolmap.Database.open(db).close()
+        pycolmap.import_images(db, images, mode)  # numbered in name order, not as extraction's threads finish
         pycolmap.extract_features(db, images, camera_mode=mode, device=pycolmap.Device.cpu)
-        pycolmap.match_exhaustive(db, device=pycolmap.Device.cpu)
-        maps = pycolmap.incremental_mapping(db, images, work / "sparse")
+        pycolmap.match_exhaustive(db, device=pycolmap.Device.cpu, verification_options=verify)
+        maps = pycolmap.incremental_mapping(db, images, work / "sparse", mapping)
     if not maps:
         raise SfmError(f"{images}: COLMAP could not register the photos (too little overlap?)")
     best = max(maps.values(), key=lambda r: r.num_reg_images())
