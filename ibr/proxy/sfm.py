@@ -33,14 +33,18 @@ class SfmConfig:
     min_registered: int = 3
     """Fewest photos the largest reconstruction must register."""
     seed: int = 0
-    """Seed of COLMAP's pair verification and mapping: the same photos give the same model."""
+    """Seed of COLMAP's pair verification and mapping. With the photos numbered in name order
+    it makes a run repeatable, except where COLMAP's threads differ: the CPU index matcher
+    now and then matches a pair otherwise, and an adjustment of a large model sums in
+    another order (the mission's SfM, `robot.mission.map_building.MapConfig.mapping_threads`,
+    runs both on one thread; here the user's photos, often 3,000 px wide, keep COLMAP's
+    threads)."""
 
 
 def reconstruct(folder: str | Path, cfg: SfmConfig = SfmConfig(), overwrite: bool = False) -> Path:
     """Reconstruct `folder/images` and write the largest model to `folder/sparse/0`; reuse it
-    when present unless `overwrite`. Returns the model folder. Seeded (`SfmConfig.seed`) and
-    numbered in name order, so the same photos give the same photos registered (the poses
-    may still differ in their last digits where COLMAP's threads adjust a large model)."""
+    when present unless `overwrite`. Returns the model folder. Seeded (`SfmConfig.seed`)
+    and numbered in name order."""
     import pycolmap
 
     folder = Path(folder)

@@ -8,7 +8,7 @@ import pytest
 from PIL import Image
 
 from ibr.scene import load_scene
-from ibr.proxy.sfm import SfmError, load_unposed, reconstruct
+from ibr.proxy.sfm import SfmError, load_unposed
 
 
 def _normalised_distances(centres: np.ndarray) -> np.ndarray:
@@ -29,9 +29,6 @@ def test_sfm_recovers_the_strecha_camera_layout(strecha_dir, tmp_path):
     gt = np.array([truth.view(n).camera.center for n in names])
     np.testing.assert_allclose(_normalised_distances(est), _normalised_distances(gt), atol=0.02)
     assert load_scene(tmp_path).cameras[0].width == 384     # the folder is now a COLMAP project
-    reconstruct(tmp_path, overwrite=True)  # seeded, numbered in name order: the same model again
-    again = load_scene(tmp_path)
-    np.testing.assert_allclose([again.view(n).camera.center for n in names], est, atol=1e-9)
 
 
 def test_sfm_without_photos_names_the_folder(tmp_path, ibrnav_command):
