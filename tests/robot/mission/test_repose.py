@@ -287,12 +287,13 @@ def test_sfm_of_the_same_photos_is_the_same_map(two_rooms, tmp_path):
     """Two SfM runs of the same photos in fresh workspaces give the same database, image ids
     included (numbered in name order before the extraction's threads number them as they
     finish: unordered, COLMAP's mapping visited the photos in another order and the same
-    108 photos gave 1586 or 1584 points), and the same model to the last digit."""
+    108 photos gave 1586 or 1584 points), and the same model to the last digit (matching
+    and mapping on `MapConfig.mapping_threads`, one)."""
+    import pycolmap
+
     robot, images, headings, n = two_rooms
     images, headings, cfg = images[:n], headings[:n], MapConfig()
     runs = [run_sfm(images, robot.intrinsics, headings, cfg, tmp_path / w)[0] for w in "ab"]
-    import pycolmap
-
     for w in "ab":
         db = pycolmap.Database.open(tmp_path / w / "database.db")
         try:
