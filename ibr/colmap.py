@@ -1,8 +1,10 @@
 """Posed views to a `pycolmap.Reconstruction`: cameras, images and points with their tracks.
 
 The one place that builds a COLMAP model from ibrnav `Camera`s (`ibr.export` writes it,
-`ibr.proxy.refine` bundle-adjusts it), and the switch that quiets COLMAP's log. Intrinsics go through `Camera.to_pycolmap` (COLMAP's
-pixel (0, 0) is the top-left pixel's corner, ibrnav's its centre: + 0.5 px), poses as
+`ibr.proxy.refine` bundle-adjusts it), the switch that quiets COLMAP's log, and the
+import that numbers photos in name order before SfM extracts their features (both SfM
+paths: `ibr.proxy.sfm` and `robot.mission.map_building`). Intrinsics go through
+`Camera.to_pycolmap` (COLMAP's pixel (0, 0) is the top-left pixel's corner, ibrnav's its centre: + 0.5 px), poses as
 `cam_from_world`. Views with the same intrinsics and size share one COLMAP camera.
 Units: world metres; keypoints in COLMAP pixels.
 """
@@ -10,6 +12,7 @@ Units: world metres; keypoints in COLMAP pixels.
 from __future__ import annotations
 
 import contextlib
+from pathlib import Path
 
 import numpy as np
 
@@ -87,3 +90,18 @@ def colmap_errors_only():
         yield
     finally:
         pycolmap.logging.minloglevel = level
+
+
+def import_in_name_order(database: Path, image_dir: Path, camera_mode, names: list[str] | None = None,
+                         reader=None) -> None:
+    """Add the photos `names` of `image_dir` (None: all of them) to the COLMAP `database`
+    (created if missing), numbered in name order, before `pycolmap.extract_features`
+    extracts their features. Left to the extraction, its threads number the photos as they
+    finish; COLMAP's mapping visits photos by number, so the same photos gave another
+    model (108 photos: 1586 or 1584 points). `camera_mode`: a `pycolmap.CameraMode`;
+    `reader`: `pycolmap.ImageReaderOptions` (the camera model, or an existing camera)."""
+    import pycolmap
+
+    pycolmap.Database.open(database).close()
+    pycolmap.import_images(database, image_dir, camera_mode, names or [],
+                           reader if reader is not None else pycolmap.ImageReaderOptions())

@@ -15,7 +15,7 @@ import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
-from ibr.colmap import colmap_errors_only
+from ibr.colmap import colmap_errors_only, import_in_name_order
 from ibr.errors import InputError
 from ibr.scene import IMAGE_SUFFIXES, Scene, load_colmap
 
@@ -64,8 +64,7 @@ def reconstruct(folder: str | Path, cfg: SfmConfig = SfmConfig(), overwrite: boo
     mapping = pycolmap.IncrementalPipelineOptions()
     mapping.random_seed = mapping.mapper.random_seed = cfg.seed
     with colmap_errors_only():
-        pycolmap.Database.open(db).close()
-        pycolmap.import_images(db, images, mode)  # numbered in name order, not as extraction's threads finish
+        import_in_name_order(db, images, mode)
         pycolmap.extract_features(db, images, camera_mode=mode, device=pycolmap.Device.cpu)
         pycolmap.match_exhaustive(db, device=pycolmap.Device.cpu, verification_options=verify)
         maps = pycolmap.incremental_mapping(db, images, work / "sparse", mapping)

@@ -46,10 +46,10 @@ import trimesh
 
 from explore.frontier import SonarConfig
 from ibr.camera import Camera, rigid
+from ibr.colmap import colmap_errors_only, import_in_name_order
 from ibr.errors import InputError
 from ibr.proxy.normals import estimate_normals, remove_outliers
 from ibr.proxy.poisson import PoissonConfig, poisson_mesh
-from ibr.proxy.sfm import colmap_errors_only
 from ibr.proxy.triangulation import TriangulationConfig, pair_tracks
 from robot.mission.circles import CircleConfig, LevelledModel, circle_ids, complete_circles, place_models, rot2d
 from robot.mission.floor_scale import FloorScaleConfig, floor_scale, rescaled
@@ -231,9 +231,8 @@ def sfm_in_workspace(names: list[str], K: np.ndarray, headings: np.ndarray, conf
     extract.sift.first_octave = config.sift_first_octave
     if new:
         with colmap_errors_only():
-            if absent:  # numbered in name order first: extraction's threads number them as they finish
-                pycolmap.Database.open(db).close()
-                pycolmap.import_images(db, img_dir, pycolmap.CameraMode.SINGLE, absent, reader)
+            if absent:
+                import_in_name_order(db, img_dir, pycolmap.CameraMode.SINGLE, absent, reader)
             pycolmap.extract_features(db, img_dir, new, camera_mode=pycolmap.CameraMode.SINGLE,
                                       reader_options=reader, extraction_options=extract,
                                       device=pycolmap.Device.cpu)
