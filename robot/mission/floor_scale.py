@@ -6,9 +6,10 @@ map's scale; the horizontal baselines between the photos carry the scale. For on
 the map's baseline from i to j is multiplied by a factor k (camera j moved to
 C_i + k (C_j - C_i), heights and rotations kept), the floor pixels of photo i are projected
 into photo j and compared; the k whose warp matches best (a robust photometric cost, searched
-over log k, then refined jointly with a small turn of photo j about the vertical: SfM's
-headings are off by tenths of a degree, which the floor's parallax alone would take for
-scale) is the pair's estimate of true / map scale. The pairs' estimates are combined by
+over log k, then refined jointly with a small turn of photo j about the vertical and a
+small turn of the baseline's direction: SfM's headings are off by tenths of a degree and its
+photos a few cm sideways, which the floor's parallax alone would take for scale) is the
+pair's estimate of true / map scale. The pairs' estimates are combined by
 their median (`floor_scale`), none when they disagree; pairs need a baseline and a common
 floor (`candidate_pairs`), so a map of one stop gets none. Everything is relative to the
 camera height h (floor range, baselines) and the image (intensities in [0, 1]).
@@ -55,9 +56,15 @@ class FloorScaleConfig:
     max_pairs: int = 300
     """At most this many pairs (those whose common floor moves most with k)."""
     refine_yaw: bool = True
-    """Refine log k jointly with a small turn of photo j about the vertical (Gauss-Newton,
-    robust): the map's cameras are level, but their headings are 0.2-0.8 degrees off one
-    another (apartments), a 1-4 px shift that the 1-D search took for up to 1.2 % of scale."""
+    """Refine log k jointly with a small turn of photo j about the vertical and a small turn
+    of the baseline's direction about photo i (Gauss-Newton, robust): the map's cameras are
+    level, but their headings are 0.2-0.8 degrees off one another (apartments), a 1-4 px
+    shift that the 1-D search took for up to 1.2 % of scale; and photo j stands a few cm
+    beside the map's baseline, whose parallax a fit of k and the turn alone took for scale
+    too (apartments 1-3: pairs' medians 1.0-1.5 % low, quartiles up to 3 % apart; with the
+    baseline's direction free, within 0.2 %, quartiles under 0.7 %). The floor's homography
+    fixes the whole horizontal offset (the height is known), so the third parameter costs no
+    ambiguity."""
     gn_iterations: int = 12
     """Gauss-Newton iterations of the refinement."""
     min_pairs: int = 10
@@ -103,16 +110,17 @@ def floor_pixels(cam: Camera, max_range_m: float, stride_px: int) -> tuple[np.nd
 
 
 def project_moved(cam_i: Camera, cam_j: Camera, X: np.ndarray, log_k: np.ndarray,
-                  yaw_rad: float = 0.0) -> np.ndarray:
+                  yaw_rad: float = 0.0, turn_rad: float = 0.0) -> np.ndarray:
     """(len(log_k), N, 2) pixels in photo j of world points X (N, 3) with j's horizontal
-    offset from i scaled by exp(log_k) and j turned by `yaw_rad` about the vertical (its
-    height kept); NaN behind j."""
+    offset from i turned by `turn_rad` about the vertical and scaled by exp(log_k), and j
+    turned by `yaw_rad` about the vertical (its height kept); NaN behind j."""
     ci, cj = cam_i.center, cam_j.center
     R, K = cam_j.cam_from_world[:3, :3] @ Rotation.from_euler("z", -yaw_rad).as_matrix(), cam_j.K
-    d = np.r_[(cj - ci)[:2], 0.0]
+    d = Rotation.from_euler("z", turn_rad).apply(np.r_[(cj - ci)[:2], 0.0])
+    base = np.r_[ci[:2], cj[2]]
     out = np.empty((len(log_k), len(X), 2))
     for n, lk in enumerate(log_k):
-        p = (X - (cj + (np.exp(lk) - 1.0) * d)) @ R.T @ K.T
+        p = (X - (base + np.exp(lk) * d)) @ R.T @ K.T
         z = np.where(p[:, 2] > 1e-6, p[:, 2], np.nan)
         out[n] = p[:, :2] / z[:, None]
     return out
@@ -163,26 +171,28 @@ def _search(gi, gj, cam_i, cam_j, uv, X, grid, robust):
 def refine(gi, gj, cam_i: Camera, cam_j: Camera, uv: np.ndarray, X: np.ndarray, log_k: float,
            config: FloorScaleConfig) -> tuple[float, float, float]:
     """(log k, yaw rad, standard error of log k): robust Gauss-Newton (Geman-McClure weights)
-    of the warp i -> j over log k and a turn of j about the vertical, from (`log_k`, 0)."""
+    of the warp i -> j over log k, a turn of j about the vertical and a turn of the baseline's
+    direction (`project_moved`), from (`log_k`, 0, 0)."""
     h, w = gj.shape
     gx, gy = cv2.Sobel(gj, cv2.CV_32F, 1, 0, ksize=3) / 8, cv2.Sobel(gj, cv2.CV_32F, 0, 1, ksize=3) / 8
     a = gi[uv[:, 1].astype(int), uv[:, 0].astype(int)]
-    th, eps, se = np.array([log_k, 0.0]), 1e-4, np.inf
+    th, eps, se = np.array([log_k, 0.0, 0.0]), 1e-4, np.inf
     for _ in range(config.gn_iterations):
-        p = project_moved(cam_i, cam_j, X, np.array([th[0], th[0] + eps]), th[1])
-        p = np.concatenate([p, project_moved(cam_i, cam_j, X, np.array([th[0]]), th[1] + eps)])
+        at = lambda lk, yaw, turn: project_moved(cam_i, cam_j, X, np.array([lk]), yaw, turn)  # noqa: E731
+        p = np.concatenate([at(*th), at(th[0] + eps, *th[1:]), at(th[0], th[1] + eps, th[2]),
+                            at(*th[:2], th[2] + eps)])
         ok = in_image(p, w, h)
         if ok.sum() < config.min_pixels:
             return th[0], th[1], np.inf
         b, bx, by = (sample(g, p[0, ok]) for g in (gj, gx, gy))
         r = b - a[ok]
-        dp = (p[1:, ok] - p[0, ok]) / eps                       # (2 params, N, 2)
-        J = (dp[..., 0] * bx + dp[..., 1] * by).T              # (N, 2)
+        dp = (p[1:, ok] - p[0, ok]) / eps                       # (3 params, N, 2)
+        J = (dp[..., 0] * bx + dp[..., 1] * by).T              # (N, 3)
         wgt = 1.0 / (1.0 + (r / config.robust) ** 2) ** 2
         A, g = (J * wgt[:, None]).T @ J, (J * wgt[:, None]).T @ r
-        step = -np.linalg.solve(A + 1e-9 * np.eye(2), g)
+        step = -np.linalg.solve(A + 1e-9 * np.eye(len(th)), g)
         th = th + np.clip(step, -0.05, 0.05)
-        se = float(np.sqrt(np.linalg.inv(A)[0, 0] * (wgt * r ** 2).sum() / max(wgt.sum() - 2, 1)))
+        se = float(np.sqrt(np.linalg.inv(A)[0, 0] * (wgt * r ** 2).sum() / max(wgt.sum() - len(th), 1)))
         if np.abs(step).max() < 1e-5:
             break
     return float(th[0]), float(th[1]), se
