@@ -22,8 +22,12 @@ poses the circles' remaining photos. Without any floor the odometry gives the sc
 The placed map's scale is then corrected by the floor seen in pairs of photos of different
 stops (`robot.mission.floor_scale`: the floor plane's homography, with the cameras at their
 known height, fixes the baselines' length): the placement's scale was -1.9 to +1.1 % off on
-apartments 0-9 (first maps), the floor's -0.8 to +0.4 %; a map of one stop (apartments 5
-and 9 on one run) has no baseline and keeps the placement's.
+apartments 0-9 (first maps); the floor's first maps of apartments 0-9 and offices 0-4 are
+0.00-0.62 % off (median 0.11 %), but for apartment 2 (1.07 %, where the pairs' median is
+within 0.25 % of their baselines' true ratio: the error is the layout's, over photos
+spanning 1.2 m) and apartment 5 (1.74 %). A map of one stop has no baseline, and one whose
+floor is hidden (apartment 5 starts beside a bed: every floor pixel of its pairs is the
+bed's top) has pairs that disagree; both keep the placement's scale.
 
 `extend_map` adds photos whose poses were localised (PnP) later: their SIFT features are
 matched with their stereo partners (`stereo_tracks`) and triangulated with the poses *fixed*
