@@ -86,6 +86,8 @@ def _truth_report(world, robot, result) -> dict:
             "model_photos_error": None if model is None else {"position_m": _position_error(model),
                                                               "heading_deg": _heading_error(model)},
             "map_scale_error": map_scale_error(result.robot_map, truth, robot.cam_from_robot, result.photos),
+            "first_map_scale_error": None if result.first_map_photos is None else
+            map_scale_error(result.robot_map, truth, robot.cam_from_robot, result.photos, result.first_map_photos),
             "rooms_visited": visited, "rooms": rooms}
 
 

@@ -60,14 +60,14 @@ def _pose_errors(photos: list[MissionPhoto], truth: dict[int, np.ndarray]) -> di
 
 
 def map_scale_error(robot_map: RobotMap | None, truth: dict[int, np.ndarray], cam_from_robot: np.ndarray,
-                    photos: list[MissionPhoto]) -> float | None:
+                    photos: list[MissionPhoto], only: frozenset[int] | None = None) -> float | None:
     """|s - 1| of the 2-D similarity (Umeyama) from the map's camera centres of the random
-    stage's photos (posed by SfM) onto their true centres: 0 for a map in metres. None
-    without at least 3 such photos."""
+    stage's photos (posed by SfM; of those in `only` alone, when given) onto their true
+    centres: 0 for a map in metres. None without at least 3 such photos."""
     if robot_map is None:
         return None
     idx = [i for i in robot_map.cameras if i < len(photos) and photos[i].stage == "random"
-           and photos[i].photo.index in truth]
+           and photos[i].photo.index in truth and (only is None or i in only)]
     if len(idx) < 3:
         return None
     mapped = np.array([robot_map.cameras[i].center[:2] for i in idx])

@@ -60,6 +60,11 @@ class MissionResult:
     on photos taken at the known start (`start_anchored`; None: no first map this run, or
     a resumed one, whose first map the journal does not keep)."""
 
+    first_map_photos: frozenset[int] | None = None
+    """The photos (indices into `photos`) the first map posed, whose cameras later steps keep:
+    the map's own scale is theirs (`evaluation.map_scale_error` over them). Photos a
+    re-posing adds carry their own position errors (None: a resumed run, as above)."""
+
     @property
     def model_photos(self) -> list[MissionPhoto]:
         """The photos of the model (random + goal; not those taken only to localise)."""
@@ -204,7 +209,8 @@ def _start_adaptive(robot: Robot, start_pose: np.ndarray, n_random: int, photo_b
         photos[i].camera = cam
     log.info(f"initial map: {rmap.registered}/{len(photos)} photos posed, {len(rmap.points)} points, "
                  f"{len(rmap.mesh.faces)} faces")
-    result = MissionResult(photos, rmap, start_anchored=_warn_unanchored(rmap, photos, config.map))
+    result = MissionResult(photos, rmap, start_anchored=_warn_unanchored(rmap, photos, config.map),
+                           first_map_photos=frozenset(rmap.cameras))
     mission = AdaptiveMission(robot, start_filter(robot, body, photos, rmap, config, rng), photos, rmap,
                               config, rng, obs)
     mission.take_photo("localise")

@@ -29,3 +29,29 @@ def test_model_photos_are_reported_apart_from_the_localisation_looks():
     assert np.isclose(model["heading_median_deg"], 1.0)
     assert localisation_errors(photos[:1], truth) is None  # no adaptive photo
     assert localisation_errors(photos[3:5], truth)["model"] is None  # no goal photo
+
+
+def test_first_map_scale_is_measured_apart_from_photos_joined_later():
+    """Six random photos mapped at exact scale, two more joined later 10 % out from the
+    middle (as re-posed photos placed a few cm off): over all of them the map reads off in
+    scale, over the first map's alone (`only`) it is exact."""
+    import trimesh
+
+    from ibr.camera import intrinsics_from_fov
+    from robot.mission.evaluation import map_scale_error
+    from robot.mission.map_building import RobotMap
+    from robot.protocol import forward_camera_mount, robot_camera
+
+    mount, K = forward_camera_mount(0.4), intrinsics_from_fov(60.0, 32, 24)
+    true = [np.array([x, y, 0.3 * i]) for i, (x, y) in enumerate([(0, 0), (1, 0), (0, 1), (1, 1), (2, 0), (2, 1),
+                                                                   (3, 0), (3, 1)])]
+    mapped = [t.copy() for t in true]
+    for t in mapped[6:]:
+        t[:2] = np.array([1.5, 0.5]) + 1.1 * (t[:2] - np.array([1.5, 0.5]))
+    cams = {i: robot_camera(p, K, (32, 24), mount) for i, p in enumerate(mapped)}
+    rmap = RobotMap(cams, np.zeros((0, 3)), np.zeros((0, 3), np.uint8), np.zeros((0, 3)), trimesh.Trimesh())
+    photos = [mission_photo(i, "random", p) for i, p in enumerate(mapped)]
+    truth = dict(enumerate(true))
+    assert map_scale_error(rmap, truth, mount, photos) > 0.01
+    assert map_scale_error(rmap, truth, mount, photos, frozenset(range(6))) < 1e-9
+    assert map_scale_error(rmap, truth, mount, photos, frozenset(range(2))) is None  # under 3 photos
