@@ -61,7 +61,7 @@ class FloorScaleConfig:
     level, but their headings are 0.2-0.8 degrees off one another (apartments), a 1-4 px
     shift that the 1-D search took for up to 1.2 % of scale; and photo j stands a few cm
     beside the map's baseline, whose parallax a fit of k and the turn alone took for scale
-    too (apartments 1-3, every pair against its true baseline ratio: medians 0.7-1.5 % low,
+    too (apartments 1-3, every pair against its true baseline ratio: medians 0.7-1.3 % low,
     quartiles up to 3.7 % apart; with the baseline's direction free, medians within 0.25 %,
     quartiles within 0.8 %). The floor's homography
     fixes the whole horizontal offset (the height is known), so the third parameter costs no
