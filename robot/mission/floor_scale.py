@@ -178,8 +178,8 @@ def refine(gi, gj, cam_i: Camera, cam_j: Camera, uv: np.ndarray, X: np.ndarray, 
     gx, gy = cv2.Sobel(gj, cv2.CV_32F, 1, 0, ksize=3) / 8, cv2.Sobel(gj, cv2.CV_32F, 0, 1, ksize=3) / 8
     a = gi[uv[:, 1].astype(int), uv[:, 0].astype(int)]
     th, eps, se = np.array([log_k, 0.0, 0.0]), 1e-4, np.inf
+    at = lambda lk, yaw, turn: project_moved(cam_i, cam_j, X, np.array([lk]), yaw, turn)  # noqa: E731
     for _ in range(config.gn_iterations):
-        at = lambda lk, yaw, turn: project_moved(cam_i, cam_j, X, np.array([lk]), yaw, turn)  # noqa: E731
         p = np.concatenate([at(*th), at(th[0] + eps, *th[1:]), at(th[0], th[1] + eps, th[2]),
                             at(*th[:2], th[2] + eps)])
         ok = in_image(p, w, h)
