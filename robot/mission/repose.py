@@ -12,9 +12,11 @@ within 3-4 cm of the truth after one similarity, where the filter had been 0.4-3
 The SfM model is put into the map's frame by the similarity between its cameras and
 the map's *anchors*, the photos SfM or a PnP fix posed before (not the goal photos posed
 at the filter's estimate): the rotation from their orientations, the scale and shift from
-their centres (`oriented_similarity`). The map keeps its scale and place:
-SfM only adds what the map lacked. A model whose anchors do not agree with it is not used
-(a wrong model, or one that merged two rooms by a repeated texture). The anchors check a
+their centres (`oriented_similarity`), then the scale from the floor (`floor_placed`: the
+anchors span a few stops at first, and a scale set over 1-2 m is a few per cent off over
+a whole apartment). The map keeps its place: SfM only adds what the map lacked. A model
+whose anchors do not agree with it is not used (a wrong model, or one that merged two
+rooms by a repeated texture). The anchors check a
 model only where it meets the map: within a model that passes, a photo joins only where the
 robot's own odometry (its compass-aided dead reckoning where it has one) ties it, photo by
 photo, to map photos that agree (`odometry_held`);
@@ -29,6 +31,8 @@ Frames: world metres (the map's floor frame); cameras as `ibr.camera.Camera`.
 
 from __future__ import annotations
 
+import logging
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -39,9 +43,12 @@ from scipy.sparse.csgraph import connected_components
 from ibr.camera import Camera
 from localization.motion_models import wrap_angle
 from robot.mission.circles import rot2d
+from robot.mission.floor_scale import FloorScaleConfig, floor_scale
 from robot.mission.map_building import (MapConfig, MapError, forget_model, heading_pairs, posed_images, run_sfm,
                                          transform_camera)
 from robot.mission.sfm_process import run_sfm_within
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -93,6 +100,11 @@ class ReposeConfig:
     one photo SfM got wrong does not cut a run of right ones in two (on that mission the
     right photos kept rose from 97 to 101 of 118, and from 187 to 226 of 248 on another,
     seed 3 again, round 10; none wrong kept with 1, 2, 3 or 5)."""
+    floor_photos: int = 150
+    """The placed model's scale is checked on the floor (`floor_placed`) over at most this
+    many of its photos, spread evenly over the order they were taken in (a few per stop):
+    `floor_scale` compares every two of them, and its median needs tens of pairs, not
+    thousands. A count of photos, not a length of any scene."""
     window: int = 3
     """A photo taken only to localise is matched with the model's photos facing its way and
     with the next `window` photos the robot took (consecutive photos overlap), not with
@@ -107,10 +119,11 @@ def rotation_mean(rotations: np.ndarray) -> np.ndarray:
     return U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
 
 
-def oriented_similarity(sfm: list[Camera], anchors: list[Camera]) -> np.ndarray:
+def oriented_similarity(sfm: list[Camera], anchors: list[Camera], scale: float | None = None) -> np.ndarray:
     """(4, 4) similarity map_from_sfm from cameras seen in both frames: the rotation from
     their orientations (`rotation_mean` of R_map R_sfm^T), then the scale and shift that
-    fit their centres with it (least squares). A ground robot's camera centres all lie at
+    fit their centres with it (least squares; the shift alone with a known `scale`, map
+    metres per SfM unit). A ground robot's camera centres all lie at
     its camera's height: fitted to the centres alone (Umeyama 1991), the tilt of the
     placed model rests on their centimetres of height noise over a few metres. On
     apartment 7 (main, traced) the PnP fixes right to 10 cm stood ~3.5 degrees out of the
@@ -123,31 +136,56 @@ def oriented_similarity(sfm: list[Camera], anchors: list[Camera]) -> np.ndarray:
     src = np.array([c.center for c in sfm]) @ R.T
     dst = np.array([a.center for a in anchors])
     ds, dd = src - src.mean(0), dst - dst.mean(0)
-    s = float(np.sum(ds * dd) / np.sum(ds * ds))
+    s = float(np.sum(ds * dd) / np.sum(ds * ds)) if scale is None else float(scale)
     T = np.eye(4)
     T[:3, :3], T[:3, 3] = s * R, dst.mean(0) - s * src.mean(0)
     return T
 
 
 def anchored(sfm: dict[int, Camera], anchors: dict[int, Camera],
-             config: ReposeConfig = ReposeConfig()) -> tuple[np.ndarray, float] | None:
+             config: ReposeConfig = ReposeConfig(), scale: float | None = None) -> tuple[np.ndarray, float] | None:
     """(map_from_sfm (4, 4), median anchor error m) placing the SfM cameras {photo: Camera}
-    onto the map's `anchors` by their shared photos (`oriented_similarity`): fitted on all,
-    refitted on the half whose centres agree best (a few anchors posed wrong by a bad fix
-    do not bend it). None with too few shared photos or a median error above
-    `max_anchor_error_m`."""
+    onto the map's `anchors` by their shared photos (`oriented_similarity`, at a known
+    `scale` when given): fitted on all, refitted on the half whose centres agree best (a
+    few anchors posed wrong by a bad fix do not bend it). None with too few shared photos
+    or a median error above `max_anchor_error_m`."""
     shared = sorted(set(sfm) & set(anchors))
     if len(shared) < config.min_anchors:
         return None
     src = np.array([sfm[i].center for i in shared])
     dst = np.array([anchors[i].center for i in shared])
-    T = oriented_similarity([sfm[i] for i in shared], [anchors[i] for i in shared])
+    T = oriented_similarity([sfm[i] for i in shared], [anchors[i] for i in shared], scale)
     err = np.linalg.norm(dst - (src @ T[:3, :3].T + T[:3, 3]), axis=1)
     best = np.argsort(err)[: max(config.min_anchors, len(shared) // 2)]
-    T = oriented_similarity([sfm[shared[k]] for k in best], [anchors[shared[k]] for k in best])
+    T = oriented_similarity([sfm[shared[k]] for k in best], [anchors[shared[k]] for k in best], scale)
     err = np.linalg.norm(dst - (src @ T[:3, :3].T + T[:3, 3]), axis=1)
     median = float(np.median(err))
     return (T, median) if median <= config.max_anchor_error_m else None
+
+
+def floor_placed(sfm: dict[int, Camera], images: list[np.ndarray], anchors: dict[int, Camera],
+                 placed: tuple[np.ndarray, float], floor: FloorScaleConfig,
+                 config: ReposeConfig = ReposeConfig()) -> tuple[np.ndarray, float, float]:
+    """(map_from_sfm (4, 4), median anchor error m, the floor's factor k; NaN: none) of
+    the SfM cameras `sfm` placed by the anchors (`placed`, from `anchored`), at the scale
+    the floor gives them: the model placed by `placed`, the floor's factor k (true / placed
+    scale, `floor_scale`) over `floor_photos` of its photos, then the anchors fit again at
+    the scale k times the placement's (the rotation from the orientations, the shift from
+    the centres). The anchors set the scale only over their own span, which is short at
+    first (the first map's few stops, 1-2 m): on apartment 9 the first re-posing's model,
+    1.6-3 cm from the truth after a similarity of its own, was placed 3.6 % small, and the
+    photos it added to the map stood 10 cm off at the median (4 cm at the true scale); the
+    next re-posings took those as anchors. `placed` is kept when the floor gives no factor,
+    or when the anchors do not fit at its scale (`anchored`)."""
+    T, err = placed
+    moved = {i: transform_camera(c, T) for i, c in sfm.items()}
+    ids = sorted(moved)
+    pick = [ids[k] for k in np.unique(np.linspace(0, len(ids) - 1, config.floor_photos).round().astype(int))]
+    k, _ = floor_scale({i: images[i] for i in pick}, {i: moved[i] for i in pick}, floor)
+    if not np.isfinite(k):
+        return T, err, float("nan")
+    again = anchored(sfm, anchors, config, scale=k * float(np.cbrt(np.linalg.det(T[:3, :3]))))
+    return (*again, k) if again is not None else (T, err, float("nan"))
 
 
 def odometry_held(poses: dict[int, np.ndarray], odometry: np.ndarray, anchors_agree: dict[int, bool],
@@ -269,5 +307,11 @@ def repose_photos(images: list[np.ndarray], K: np.ndarray, compass_rad: np.ndarr
         forget_model(work)  # grown further, a bent or merged model stays so (apartment 2: 5 calls in a row)
         return (f"the map's photos do not fit its largest model ({shared} shared, median error above "
                 f"{100 * config.max_anchor_error_m:.0f} cm; the next re-posing maps afresh)")
-    T, err = placed
+    if map_config.floor_scale is not None:
+        t0 = time.perf_counter()
+        T, err, k = floor_placed(cams, images, anchors, placed, map_config.floor_scale, config)
+        log.info((f"re-posing by SfM: the floor scales the placed model by {k:.4f}" if np.isfinite(k) else
+                  "re-posing by SfM: the anchors' scale kept (no floor scale they fit)") + f" ({time.perf_counter() - t0:.1f} s)")
+    else:
+        T, err = placed
     return {i: transform_camera(c, T) for i, c in cams.items()}, support, err

@@ -112,3 +112,29 @@ def test_no_scale_from_pairs_that_disagree():
 def test_the_standard_error_of_a_median_of_normal_samples():
     x = np.random.default_rng(0).normal(0.0, 0.02, 400)
     assert abs(median_standard_error(x) - np.sqrt(np.pi / 2) * 0.02 / 20) < 0.0003
+
+
+def test_a_reposed_model_takes_the_floors_scale_not_its_anchors():
+    """An SfM model of the three stops, placed on map photos whose layout is 4 % short (the
+    anchors' short span, 1 m, sets the scale to their centimetres of error): the placement
+    by the anchors alone is 4 % small, the floor's factor puts it within 0.5 % of the truth."""
+    from robot.mission.map_building import transform_camera
+    from robot.mission.repose import ReposeConfig, anchored, floor_placed
+
+    images, true = _scene(1.0, np.random.default_rng(7))
+    _, anchors = _scene(0.96, np.random.default_rng(7))
+    map_from_sfm = np.eye(4)
+    map_from_sfm[:3, :3] = 3.0 * np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    map_from_sfm[:3, 3] = [0.5, -1.0, 0.2]
+    sfm = {i: transform_camera(c, np.linalg.inv(map_from_sfm)) for i, c in true.items()}
+    config = ReposeConfig(min_anchors=6)
+    placed = anchored(sfm, anchors, config)
+    assert placed is not None
+
+    def scale(T):
+        return float(np.cbrt(np.linalg.det(T[:3, :3])) / 3.0)
+
+    assert abs(scale(placed[0]) - 0.96) < 0.005
+    T, err, k = floor_placed(sfm, [images[i] for i in range(len(images))], anchors, placed, FloorScaleConfig(), config)
+    assert abs(scale(T) - 1.0) < 0.005 and abs(k * 0.96 - 1.0) < 0.005, (scale(T), k)
+    assert err < ReposeConfig().max_anchor_error_m
