@@ -713,7 +713,7 @@ class AdaptiveMission:
         found = repose_photos([p.photo.image for p in self.photos], self.robot.intrinsics,
                               np.array([p.photo.compass_rad for p in self.photos]),
                               np.array([p.stage != "localise" for p in self.photos]), known, c.map,
-                              self._sfm_work, c.repose, max_s, limit)
+                              self._sfm_work, c.repose, max_s, limit, self.robot.cam_from_robot)
         if isinstance(found, str):
             log.info(f"re-posing by SfM: the map is unchanged: {found}")
             return 0

@@ -42,10 +42,11 @@ from scipy.sparse.csgraph import connected_components
 
 from ibr.camera import Camera
 from localization.motion_models import wrap_angle
+from localization.pose_views import robot_camera
 from robot.mission.circles import rot2d
 from robot.mission.floor_scale import FloorScaleConfig, floor_scale
-from robot.mission.map_building import (MapConfig, MapError, forget_model, heading_pairs, posed_images, run_sfm,
-                                         transform_camera)
+from robot.mission.map_building import (MapConfig, MapError, forget_model, heading_pairs, posed_images, robot_pose,
+                                         run_sfm, transform_camera)
 from robot.mission.sfm_process import run_sfm_within
 
 log = logging.getLogger(__name__)
@@ -164,12 +165,13 @@ def anchored(sfm: dict[int, Camera], anchors: dict[int, Camera],
 
 
 def floor_placed(sfm: dict[int, Camera], images: list[np.ndarray], anchors: dict[int, Camera],
-                 placed: tuple[np.ndarray, float], floor: FloorScaleConfig,
+                 placed: tuple[np.ndarray, float], floor: FloorScaleConfig, cam_from_robot: np.ndarray,
                  config: ReposeConfig = ReposeConfig()) -> tuple[np.ndarray, float, float]:
     """(map_from_sfm (4, 4), median anchor error m, the floor's factor k; NaN: none) of
     the SfM cameras `sfm` placed by the anchors (`placed`, from `anchored`), at the scale
     the floor gives them: the model placed by `placed`, the floor's factor k (true / placed
-    scale, `floor_scale`) over `floor_photos` of its photos, then the anchors fit again at
+    scale, `floor_scale`) over `floor_photos` of its photos, each on the robot's rig at its
+    placed pose (`on_rig`), then the anchors fit again at
     the scale k times the placement's (the rotation from the orientations, the shift from
     the centres). The anchors set the scale only over their own span, which is short at
     first (the first map's few stops, 1-2 m): on apartment 9 the first re-posing's model,
@@ -178,14 +180,24 @@ def floor_placed(sfm: dict[int, Camera], images: list[np.ndarray], anchors: dict
     next re-posings took those as anchors. `placed` is kept when the floor gives no factor,
     or when the anchors do not fit at its scale (`anchored`)."""
     T, err = placed
-    moved = {i: transform_camera(c, T) for i, c in sfm.items()}
-    ids = sorted(moved)
+    ids = sorted(sfm)
     pick = [ids[k] for k in np.unique(np.linspace(0, len(ids) - 1, config.floor_photos).round().astype(int))]
-    k, _ = floor_scale({i: images[i] for i in pick}, {i: moved[i] for i in pick}, floor)
+    rig = {i: on_rig(transform_camera(sfm[i], T), cam_from_robot) for i in pick}
+    k, _ = floor_scale({i: images[i] for i in pick}, rig, floor)
     if not np.isfinite(k):
         return T, err, float("nan")
     again = anchored(sfm, anchors, config, scale=k * float(np.cbrt(np.linalg.det(T[:3, :3]))))
     return (*again, k) if again is not None else (T, err, float("nan"))
+
+
+def on_rig(cam: Camera, cam_from_robot: np.ndarray) -> Camera:
+    """The camera of the robot standing where `cam` (map frame) puts it (`robot_pose`): at
+    the mount's height, pitch and roll, the heading and place of `cam`. The floor's
+    homography reads a camera's height and tilt as scale; SfM's cameras carry centimetres
+    and tenths of a degree of both, the rig none (the first map is measured after its rig
+    adjustment for the same reason)."""
+    return robot_camera(robot_pose(cam.world_from_cam, cam_from_robot), cam.K, (cam.width, cam.height),
+                        cam_from_robot, name=cam.name)
 
 
 def odometry_held(poses: dict[int, np.ndarray], odometry: np.ndarray, anchors_agree: dict[int, bool],
@@ -282,11 +294,14 @@ def sfm_cameras(images: list[np.ndarray], K: np.ndarray, pairs: np.ndarray, conf
 def repose_photos(images: list[np.ndarray], K: np.ndarray, compass_rad: np.ndarray, in_model: np.ndarray,
                   anchors: dict[int, Camera], map_config: MapConfig, work: Path,
                   config: ReposeConfig = ReposeConfig(), max_seconds: float | None = None,
-                  limit_s: float | None = None) -> tuple[dict[int, Camera], dict[int, int], float] | str:
+                  limit_s: float | None = None, cam_from_robot: np.ndarray | None = None
+                  ) -> tuple[dict[int, Camera], dict[int, int], float] | str:
     """SfM over every photo (`sfm_cameras` of the `repose_pairs` of their compass headings
     (N,) and whether each is a model photo (N,), in the workspace `work`), placed in the
-    map's frame by its `anchors` (`anchored`): ({photo: Camera in the map frame} of every
-    photo the largest model posed, their support, the median anchor error m), or why not
+    map's frame by its `anchors` (`anchored`), at the floor's scale where the robot's
+    mount `cam_from_robot` is given and `map_config.floor_scale` is set (`floor_placed`):
+    ({photo: Camera in the map frame} of every photo the largest model posed, their
+    support, the median anchor error m), or why not
     (SfM failed, or its model does not agree with the anchors: then the next call maps
     afresh, `map_building.forget_model`), or because SfM ran past `limit_s` seconds
     (`sfm_cameras`; None: no limit). `max_seconds`: the longest COLMAP's mapping may run
@@ -307,9 +322,9 @@ def repose_photos(images: list[np.ndarray], K: np.ndarray, compass_rad: np.ndarr
         forget_model(work)  # grown further, a bent or merged model stays so (apartment 2: 5 calls in a row)
         return (f"the map's photos do not fit its largest model ({shared} shared, median error above "
                 f"{100 * config.max_anchor_error_m:.0f} cm; the next re-posing maps afresh)")
-    if map_config.floor_scale is not None:
+    if map_config.floor_scale is not None and cam_from_robot is not None:
         t0 = time.perf_counter()
-        T, err, k = floor_placed(cams, images, anchors, placed, map_config.floor_scale, config)
+        T, err, k = floor_placed(cams, images, anchors, placed, map_config.floor_scale, cam_from_robot, config)
         log.info((f"re-posing by SfM: the floor scales the placed model by {k:.4f}" if np.isfinite(k) else
                   "re-posing by SfM: the anchors' scale kept (no floor scale they fit)") + f" ({time.perf_counter() - t0:.1f} s)")
     else:

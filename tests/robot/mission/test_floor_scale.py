@@ -135,6 +135,8 @@ def test_a_reposed_model_takes_the_floors_scale_not_its_anchors():
         return float(np.cbrt(np.linalg.det(T[:3, :3])) / 3.0)
 
     assert abs(scale(placed[0]) - 0.96) < 0.005
-    T, err, k = floor_placed(sfm, [images[i] for i in range(len(images))], anchors, placed, FloorScaleConfig(), config)
+    mount = forward_camera_mount(HEIGHT, 0.05)
+    T, err, k = floor_placed(sfm, [images[i] for i in range(len(images))], anchors, placed, FloorScaleConfig(), mount,
+                             config)
     assert abs(scale(T) - 1.0) < 0.005 and abs(k * 0.96 - 1.0) < 0.005, (scale(T), k)
     assert err < ReposeConfig().max_anchor_error_m
