@@ -16,15 +16,14 @@ their centres (`oriented_similarity`), then the scale from the floor (`floor_pla
 anchors span a few stops at first, and a scale set over 1-2 m is a few per cent off over
 a whole apartment). The map keeps its place: SfM only adds what the map lacked. A model
 whose anchors do not agree with it is not used (a wrong model, or one that merged two
-rooms by a repeated texture). The anchors check a
-model only where it meets the map: within a model that passes, a photo joins only where the
-robot's own odometry (its compass-aided dead reckoning where it has one) ties it, photo by
-photo, to map photos that agree (`odometry_held`);
-on two apartment missions (seeds 3 and 5) it let in 27 and 42 photos 0.15-4 m off, the map
-grew from them and the filter followed their wrong points. The workspace keeps
-every photo's features, every pair's matches and the last model between calls, so a call
-extracts, matches and registers only the photos taken since the last (SfM of 533 photos
-from scratch: about 60 s of matching and 34 s of mapping on 2 cores).
+rooms by a repeated texture). The anchors check a model only where it meets the map:
+within a model that passes, a photo joins only where the robot's own odometry (its
+compass-aided dead reckoning where it has one) ties it, photo by photo, to map photos that
+agree (`odometry_held`); on two apartment missions (seeds 3 and 5) it let in 27 and 42
+photos 0.15-4 m off, the map grew from them and the filter followed their wrong points.
+The workspace keeps every photo's features, every pair's matches and the last model
+between calls, so a call extracts, matches and registers only the photos taken since the
+last (SfM of 533 photos from scratch: about 60 s of matching and 34 s of mapping on 2 cores).
 
 Frames: world metres (the map's floor frame); cameras as `ibr.camera.Camera`.
 """
@@ -124,9 +123,9 @@ def oriented_similarity(sfm: list[Camera], anchors: list[Camera], scale: float |
     """(4, 4) similarity map_from_sfm from cameras seen in both frames: the rotation from
     their orientations (`rotation_mean` of R_map R_sfm^T), then the scale and shift that
     fit their centres with it (least squares; the shift alone with a known `scale`, map
-    metres per SfM unit). A ground robot's camera centres all lie at
-    its camera's height: fitted to the centres alone (Umeyama 1991), the tilt of the
-    placed model rests on their centimetres of height noise over a few metres. On
+    metres per SfM unit). A ground robot's camera centres all lie at its camera's height:
+    fitted to the centres alone (Umeyama 1991), the tilt of the placed model rests on
+    their centimetres of height noise over a few metres. On
     apartment 7 (main, traced) the PnP fixes right to 10 cm stood ~3.5 degrees out of the
     map's level for the 300 photos after two re-posings (0.2-0.6 before), so the level check
     (`AdaptiveConfig.max_fix_tilt_px`) threw away 191 right fixes; it let 240 pass. Each camera's
@@ -171,10 +170,10 @@ def floor_placed(sfm: dict[int, Camera], images: list[np.ndarray], anchors: dict
     the SfM cameras `sfm` placed by the anchors (`placed`, from `anchored`), at the scale
     the floor gives them: the model placed by `placed`, the floor's factor k (true / placed
     scale, `floor_scale`) over `floor_photos` of its photos, each on the robot's rig at its
-    placed pose (`on_rig`), then the anchors fit again at
-    the scale k times the placement's (the rotation from the orientations, the shift from
-    the centres). The anchors set the scale only over their own span, which is short at
-    first (the first map's few stops, 1-2 m): on apartment 9 the first re-posing's model,
+    placed pose (`on_rig`), then the anchors fit again at the scale k times the
+    placement's (the rotation from the orientations, the shift from the centres). The
+    anchors set the scale only over their own span, which is short at first (the first
+    map's few stops, 1-2 m): on apartment 9 the first re-posing's model,
     3 cm from the truth after a similarity of its own, was placed 3.6 % small (the floor
     read 1.0379, the truth 1.0382), the photos it added to the map stood 10 cm off at the
     median, and the next re-posings took those as anchors: the map's photos drifted to
@@ -304,11 +303,10 @@ def repose_photos(images: list[np.ndarray], K: np.ndarray, compass_rad: np.ndarr
     map's frame by its `anchors` (`anchored`), at the floor's scale where the robot's
     mount `cam_from_robot` is given and `map_config.floor_scale` is set (`floor_placed`):
     ({photo: Camera in the map frame} of every photo the largest model posed, their
-    support, the median anchor error m), or why not
-    (SfM failed, or its model does not agree with the anchors: then the next call maps
-    afresh, `map_building.forget_model`), or because SfM ran past `limit_s` seconds
-    (`sfm_cameras`; None: no limit). `max_seconds`: the longest COLMAP's mapping may run
-    (None: no limit)."""
+    support, the median anchor error m), or why not (SfM failed, or its model does not
+    agree with the anchors: then the next call maps afresh, `map_building.forget_model`),
+    or because SfM ran past `limit_s` seconds (`sfm_cameras`; None: no limit).
+    `max_seconds`: the longest COLMAP's mapping may run (None: no limit)."""
     pairs = repose_pairs(compass_rad, np.asarray(in_model, bool), map_config.match_heading_rad, config.window)
     try:
         found = sfm_cameras(images, K, pairs, map_config, work, max_seconds, limit_s)
@@ -328,8 +326,9 @@ def repose_photos(images: list[np.ndarray], K: np.ndarray, compass_rad: np.ndarr
     if map_config.floor_scale is not None and cam_from_robot is not None:
         t0 = time.perf_counter()
         T, err, k = floor_placed(cams, images, anchors, placed, map_config.floor_scale, cam_from_robot, config)
-        log.info((f"re-posing by SfM: the floor scales the placed model by {k:.4f}" if np.isfinite(k) else
-                  "re-posing by SfM: the anchors' scale kept (no floor scale they fit)") + f" ({time.perf_counter() - t0:.1f} s)")
+        why = (f"the floor scales the placed model by {k:.4f}" if np.isfinite(k) else
+               "the anchors' scale kept (no floor scale they fit)")
+        log.info(f"re-posing by SfM: {why} ({time.perf_counter() - t0:.1f} s)")
     else:
         T, err = placed
     return {i: transform_camera(c, T) for i, c in cams.items()}, support, err
