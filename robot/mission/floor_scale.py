@@ -63,9 +63,8 @@ class FloorScaleConfig:
     beside the map's baseline, whose parallax a fit of k and the turn alone took for scale
     too (apartments 1-3, every pair against its true baseline ratio: medians 0.7-1.3 % low,
     quartiles up to 3.7 % apart; with the baseline's direction free, medians within 0.25 %,
-    quartiles within 0.8 %). The floor's homography
-    fixes the whole horizontal offset (the height is known), so the third parameter costs no
-    ambiguity."""
+    quartiles within 0.8 %). The floor's homography fixes the whole horizontal offset (the
+    height is known), so the third parameter costs no ambiguity."""
     gn_iterations: int = 12
     """Gauss-Newton iterations of the refinement."""
     min_pairs: int = 10

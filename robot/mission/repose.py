@@ -173,12 +173,12 @@ def floor_placed(sfm: dict[int, Camera], images: list[np.ndarray], anchors: dict
     placed pose (`on_rig`), then the anchors fit again at the scale k times the
     placement's (the rotation from the orientations, the shift from the centres). The
     anchors set the scale only over their own span, which is short at first (the first
-    map's few stops, 1-2 m): on apartment 9 the first re-posing's model,
-    3 cm from the truth after a similarity of its own, was placed 3.6 % small (the floor
-    read 1.0379, the truth 1.0382), the photos it added to the map stood 10 cm off at the
-    median, and the next re-posings took those as anchors: the map's photos drifted to
-    7 cm off, and the photos re-posings added over the mission to 8.0 cm (90th percentile
-    14 cm); with the floor's scale 1.5 cm (3.0), and the map's photos stayed at 0.5 cm.
+    map's few stops, 1-2 m): on apartment 9 the first re-posing's model, 3 cm from the
+    truth after a similarity of its own, was placed 3.6 % small (the floor read 1.0379, the
+    truth 1.0382), the photos it added to the map stood 10 cm off at the median, and the
+    next re-posings took those as anchors: the map's photos drifted to 7 cm off, and the
+    photos re-posings added over the mission to 8.0 cm (90th percentile 14 cm); with the
+    floor's scale 1.5 cm (3.0), and the map's photos stayed at 0.5 cm.
     `placed` is kept when the floor gives no factor, or when the anchors do not fit at
     its scale (`anchored`)."""
     T, err = placed
