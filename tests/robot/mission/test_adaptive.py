@@ -196,6 +196,30 @@ def test_a_mission_that_can_reach_no_goal_stops(office):
     assert len(trapped.photos) == n and trapped.given_up == 0
 
 
+def test_after_a_side_step_the_way_back_is_open(office):
+    """A stereo pair's side step that ended in cells the grid blocks (here: inside a fence of
+    map points, the robot 0.6 m from where its plan brought it) leaves the drive back
+    passable, and only that: from inside, the robot plans to goals outside through the gap,
+    and without the side step on record nothing outside is reachable."""
+    m, _, _ = office
+    est = m.body.est.pose[:2]
+    pen = fenced(m, 0.4)
+    goals, _, grid = m.choose_goals()
+    far = goals[np.hypot(*(goals[:, :2] - est).T) > 1.0]
+    assert len(far)
+    blocked = lambda: plan_path(pen._from_here(grid_in), est, far[0, :2], max_cost=m.config.max_path_cost)  # noqa: E731
+    grid_in = pen.nav_grid(shapely.Polygon([(-9, -9), (9, -9), (9, 9), (-9, 9)]))
+    assert blocked() is None
+    pen._stepped_from = est + np.array([0.6, 0.0])  # it stood outside, then stepped in
+    path = blocked()
+    assert path is not None
+    dense = np.concatenate([np.linspace(a, b, 50) for a, b in zip(path[:-1], path[1:])])
+    out = dense[np.argmax(np.hypot(*(dense - est).T) > 0.45)]  # where it crosses the fence
+    assert pen._way_back(out[None])[0]  # out the way it came in
+    back = pen._way_back(np.array([est + [0.4, 0.0], est + [-0.4, 0.0], est + [0.0, 0.4]]))
+    assert back.tolist() == [True, False, False]  # the fence stays shut elsewhere
+
+
 def test_the_ultrasonic_outranks_stray_map_points(office):
     """Map points the ultrasonic's readings contradict (the fence of `fenced`, where the real
     office is empty) make the grid dear, not blocked: the robot is not trapped by them."""
