@@ -207,9 +207,10 @@ class AdaptiveMission:
         estimate 0.2-0.5 m off would triangulate wrong points, and the next fixes would
         follow them)."""
         self._last_view: np.ndarray | None = None  # odometry when the last photo was taken
-        self._stepped_from: np.ndarray | None = None
+        self.stepped_from: np.ndarray | None = None
         """Where (world xy, m, on the estimate) the robot stood on its plan before the stereo
-        pair's side step (`capture_at`); None once it follows a plan again (`_from_here`)."""
+        pair's side step (`capture_at`); None once it follows a plan again (`_way_back`).
+        Journalled: a round ends on a side step."""
         self._seen_free = None  # the last scorer's `ViewQuality.seen_free` (its sources' depth maps)
         self._sonar: SonarGrid | None = None  # the ultrasonic's grid of the last goal choice
         self.n_candidates = self.n_frontier_goals = 0  # of the last goal choice
@@ -567,12 +568,13 @@ class AdaptiveMission:
         `stereo_baseline_m`, `capture_at`): the robot has just driven there, whatever the
         map's points say. Without it, a side step that ended by a wall or furniture left the
         robot in cells the grid blocks or prices above `max_path_cost`, and every later goal
-        of the round was given up for "no path" on the spot (office 1: 4 of its 10 given-up
-        goals at one stop, apartment 7: 5 of 9; with the cells within 0.3-0.5 m of the robot
-        opened, A* found each of them a path). All False when the robot follows a plan."""
-        if self._stepped_from is None:
+        of the round was given up for "no path" on the spot (office 1: 4 of its 10 goals given
+        up for "no path" at one stop, apartment 7: 5 of 9; with the cells within 0.3-0.5 m of
+        the robot opened, A* found each of them a path). All False when the robot follows a
+        plan."""
+        if self.stepped_from is None:
             return np.zeros(len(xy), bool)
-        a, b = self._stepped_from, self.body.est.pose[:2]
+        a, b = self.stepped_from, self.body.est.pose[:2]
         ab = b - a
         t = np.clip((xy - a) @ ab / max(float(ab @ ab), 1e-12), 0.0, 1.0)
         return np.linalg.norm(xy - (a + t[:, None] * ab), axis=1) < self.config.robot_radius_m
@@ -619,7 +621,7 @@ class AdaptiveMission:
             while t < len(path) and legs < c.max_legs_per_goal:
                 last = t == len(path) - 1
                 if np.hypot(*(path[t] - self.body.est.pose[:2])) < (c.reach_m if last else c.switch_m):
-                    self._stepped_from = None  # back on a plan
+                    self.stepped_from = None  # back on a plan
                     if last:
                         self.localise_here()  # check the arrival by vision
                         if np.hypot(*(path[t] - self.body.est.pose[:2])) < c.reach_m + 0.05:
@@ -660,7 +662,7 @@ class AdaptiveMission:
         c = self.config
         self._face(goal[2])
         out = [self.take_photo("goal")]
-        self._stepped_from = self.body.est.pose[:2].copy()
+        self.stepped_from = self.body.est.pose[:2].copy()
         for k in range(1, min(c.photos_per_goal, budget)):
             side = goal[2] + (np.pi / 2 if k % 2 else -np.pi / 2)
             self._face(side)

@@ -121,7 +121,7 @@ class SessionJournal(MissionJournal):
                  "given_up": mission.given_up, "goals": mission.goals_reached,
                  "given_up_goals": mission.given_up_goals, "bumps": mission.bumps,
                  "unfixed": sorted(mission.unfixed), "failed_at_repose": mission.failed_at_repose,
-                 "reposed": sorted(mission.reposed),
+                 "reposed": sorted(mission.reposed), "stepped_from": mission.stepped_from,
                  "rng": mission.rng.bit_generator.state}
         if hasattr(self.robot, "true_pose"):
             state["sim"] = self.robot.state()

@@ -236,6 +236,8 @@ def _resume_adaptive(robot: Robot, state: dict, config: AdaptiveConfig, rng: np.
     mission.goals_reached = [np.asarray(g, float) for g in state["goals"]]
     mission.given_up_goals = [np.asarray(g, float) for g in state.get("given_up_goals", [])]
     mission.bumps = [np.asarray(b, float) for b in state.get("bumps", [])]
+    if state.get("stepped_from") is not None:  # the last round ended on a stereo pair's side step
+        mission.stepped_from = np.asarray(state["stepped_from"], float)
     result = MissionResult(photos, rmap, rounds=state["rounds"])
     log.info(f"resumed after adaptive round {state['rounds']}: {len(result.model_photos)} photos, "
                  f"{len(rmap.points)} map points")

@@ -210,7 +210,7 @@ def test_after_a_side_step_the_way_back_is_open(office):
     blocked = lambda: plan_path(pen._from_here(grid_in), est, far[0, :2], max_cost=m.config.max_path_cost)  # noqa: E731
     grid_in = pen.nav_grid(shapely.Polygon([(-9, -9), (9, -9), (9, 9), (-9, 9)]))
     assert blocked() is None
-    pen._stepped_from = est + np.array([0.6, 0.0])  # it stood outside, then stepped in
+    pen.stepped_from = est + np.array([0.6, 0.0])  # it stood outside, then stepped in
     path = blocked()
     assert path is not None
     dense = np.concatenate([np.linspace(a, b, 50) for a, b in zip(path[:-1], path[1:])])
