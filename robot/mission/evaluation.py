@@ -88,10 +88,11 @@ def rooms_visited(world, photos: list[MissionPhoto], truth: dict[int, np.ndarray
 def model_of_photos(photos: list[MissionPhoto], robot, config) -> RobotMap | None:
     """The map the mission's first stage would build of `photos` (`map_building.initial_map`:
     SfM, placed in metres by dead reckoning and the compass; `config` a `MapConfig`), the
-    photos it posed given their cameras; None when SfM poses too few of them. For a capture
-    with no map of its own (random exploration alone), so that its new views are judged
+    photos it posed given their cameras, meshed as the mission's final model
+    (`map_building.capture_model`); None when SfM poses too few of them. For a capture with
+    no map of its own (random exploration alone), so that its new views are judged
     (`eval_capture`) like the mission's."""
-    from robot.mission.map_building import MapError, initial_map
+    from robot.mission.map_building import MapError, capture_model, initial_map
 
     try:
         rmap = initial_map([p.photo.image for p in photos], robot.intrinsics,
@@ -102,7 +103,7 @@ def model_of_photos(photos: list[MissionPhoto], robot, config) -> RobotMap | Non
         return None
     for i, cam in rmap.cameras.items():
         photos[i].camera = cam
-    return rmap
+    return capture_model(rmap, config)
 
 
 def evaluation_poses(world, n_poses: int, rng: np.random.Generator, clearance_m: float = 0.15) -> np.ndarray:

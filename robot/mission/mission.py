@@ -21,7 +21,7 @@ from robot.mission.adaptive import AdaptiveConfig, AdaptiveMission, start_filter
 from robot.mission.journal import MissionJournal, restore_adaptive
 from robot.mission.localizer import FilteredBody, MissionLocalizer
 from robot.mission.circles import circle_ids
-from robot.mission.map_building import MapConfig, MapError, RobotMap, initial_map
+from robot.mission.map_building import MapConfig, MapError, RobotMap, capture_model, initial_map
 from robot.mission.observer import MissionObserver, MissionPhoto
 from robot.mission.random_stage import Body, RandomExplorationConfig, random_exploration, steps_per_circle
 from robot.mission.watchdog import watchdog
@@ -32,10 +32,11 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class MissionResult:
-    """photos: every photo in order; robot_map: the final map; path_m: distance driven (m,
-    odometry); rounds: adaptive rounds run; goals: (G, 3) goals reached; given_up: goals
-    abandoned; fixes/failed_fixes: PnP localisations accepted / failed or rejected;
-    stop_reason: why the adaptive stage ended, in words."""
+    """photos: every photo in order; robot_map: the final map, meshed as the capture's model
+    (`map_building.capture_model`); path_m: distance driven (m, odometry); rounds: adaptive
+    rounds run; goals: (G, 3) goals reached; given_up: goals abandoned; fixes/failed_fixes:
+    PnP localisations accepted / failed or rejected; stop_reason: why the adaptive stage
+    ended, in words."""
 
     photos: list[MissionPhoto]
     robot_map: RobotMap | None
@@ -266,7 +267,9 @@ def run_mission(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budge
     else:
         mission, result = _resume_adaptive(robot, state, config, rng, obs, journal)
     adaptive_rounds(mission, result, photo_budget, journal)
-    result.robot_map, result.path_m = mission.map, mission.body.path_m
+    result.robot_map, result.path_m = capture_model(mission.map, config.map), mission.body.path_m
+    log.info(f"the capture's model: {len(result.robot_map.mesh.faces)} faces over {len(mission.map.points)} map "
+             f"points (the map's proxy: {len(mission.map.mesh.faces)})")
     result.goals, result.given_up = mission.goals_reached, mission.given_up
     result.fixes, result.failed_fixes = mission.fixes, mission.failed
     if isinstance(mission.body, FilteredBody):

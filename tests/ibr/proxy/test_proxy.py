@@ -12,7 +12,7 @@ import trimesh
 from ibr.camera import Camera, intrinsics_from_fov
 from ibr.render.depth_maps import render_depth_maps
 from ibr.render.hole_filling import push_pull
-from ibr.proxy.normals import estimate_normals, remove_outliers
+from ibr.proxy.normals import estimate_normals, merge_repeats, remove_outliers
 from ibr.proxy.poisson import MeshingError, PoissonConfig, poisson_mesh
 from ibr.proxy.proxy_geometry import ProxyConfig, build_proxy, cache_dir, triangulated_points
 from ibr.scene import load_scene
@@ -51,6 +51,22 @@ def test_normals_face_the_cameras_and_outliers_go():
     assert not keep[-1] and keep[:-1].mean() > 0.95
     n = estimate_normals(pts[:-1], np.tile([0.3, 0, 2.0], (400, 1)))
     assert np.median(n[:, 2]) > 0.99
+
+
+def test_repeats_of_a_feature_merge_to_one_point():
+    """Three places, one seen from 4 pairs (4 points a millimetre apart), one from 1, and a
+    thin wall's two faces in one cell (their normals cancel): one point each, at the mean."""
+    rng = np.random.default_rng(0)
+    a = np.array([0.525, 0.525, 0.525]) + rng.normal(0, 0.001, (4, 3))  # mid-cell: cells are cut at fixed planes
+    points = np.vstack([a, [[2.0, 0.0, 1.0]], [[1.0, 1.025, 1.0], [1.001, 1.025, 1.0]]])
+    normals = np.array([[1.0, 0, 0]] * 4 + [[0, 0, 1.0]] + [[1.0, 0, 0], [-1.0, 0, 0]])
+    colors = np.array([[10, 20, 30]] * 4 + [[200, 200, 200]] + [[0, 0, 0], [100, 100, 100]], np.uint8)
+    p, n, c = merge_repeats(points, normals, colors, cell_m=0.05)
+    assert len(p) == 3
+    k = int(np.argmin(np.linalg.norm(p - a.mean(0), axis=1)))
+    assert np.allclose(p[k], a.mean(0)) and np.allclose(n[k], [1, 0, 0]) and c[k].tolist() == [10, 20, 30]
+    assert np.allclose(np.linalg.norm(n, axis=1), 1.0)  # the wall's cell keeps one of its normals
+    assert len(merge_repeats(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3), np.uint8), 0.05)[0]) == 0
 
 
 def test_poisson_mesh_of_a_sphere_and_a_cap():

@@ -4,12 +4,15 @@ floor plane and the camera's height, within 1 %, and placed in the floor frame b
 compass and the dead reckoning, even when the odometry is biased."""
 
 import numpy as np
+import trimesh
 from scipy.spatial.transform import Rotation
 
+from ibr.proxy.poisson import poisson_mesh
 from ibr.synthetic import make_world
 from robot.mission.coverage import surface_samples
 from robot.mission.circles import place_models
-from robot.mission.map_building import floor_depth, levelled_model, world_from_levelled
+from robot.mission.map_building import (MapConfig, RobotMap, capture_model, floor_depth, levelled_model,
+                                         world_from_levelled)
 from robot.protocol import robot_camera
 from robot.sim_robot import SimRobot, SimRobotConfig
 
@@ -252,3 +255,37 @@ def test_the_floor_comes_from_points_two_circles_saw():
     rig = _Rig(poses, poses[:, 2], robot.cam_from_robot, MapConfig())
     model = _levelled(rec, rig)[0]
     assert model.floor_scale is not None and abs(model.floor_scale - 1.0) < 0.02, model.floor_scale
+
+
+def test_the_captures_model_keeps_the_walls_its_map_saw_sparsely():
+    """The capture's model (`capture_model`, what new views are rendered from) keeps a surface
+    the map holds only sparse points of, where the map's coarse proxy cuts it away: a room
+    whose one textured wall is dense pair tracks (each feature triangulated from several
+    pairs, millimetres apart, as the mission's map has them) and whose other walls, floor
+    and ceiling are points 0.3 m apart."""
+    rng = np.random.default_rng(0)
+    box = trimesh.creation.box(extents=(6.0, 4.0, 2.5))
+    box.apply_translation((0.0, 0.0, 1.25))
+    samples, faces = trimesh.sample.sample_surface_even(box, 1000, seed=1)
+    plain = samples[:, 0] > -2.99
+    seen = rng.uniform((-3.0, -2.0, 0.0), (-3.0, 2.0, 2.5), (1500, 3))
+    tracks = np.repeat(seen, 8, axis=0) + rng.normal(0.0, 0.002, (8 * len(seen), 3))
+    points = np.vstack([tracks, samples[plain]])
+    normals = np.vstack([np.tile((1.0, 0.0, 0.0), (len(tracks), 1)), -box.face_normals[faces[plain]]])
+    colors = np.full((len(points), 3), 128, np.uint8)
+    config = MapConfig()
+    rmap = RobotMap({}, points, colors, normals, poisson_mesh(points, normals, colors, config.poisson))
+    model = capture_model(rmap, config)
+    assert model.points is rmap.points and model.cameras is rmap.cameras
+    plain_area = box.area - 4.0 * 2.5
+
+    def kept(mesh):
+        on_plain = mesh.triangles_center[:, 0] > -2.9
+        return mesh.area_faces[on_plain].sum() / plain_area, mesh.triangles_center[on_plain]
+
+    coarse_share, _ = kept(rmap.mesh)
+    share, centres = kept(model.mesh)
+    assert coarse_share < 0.3, "the map's proxy cuts the sparse walls (why the capture needs its own mesh)"
+    assert share > 0.8
+    # on the walls, within a third of the points' spacing (Poisson bows between the points)
+    assert np.median(np.abs(trimesh.proximity.signed_distance(box, centres))) < 0.1
