@@ -427,10 +427,14 @@ class AdaptiveMission:
     def frontier_goals(self, grid) -> np.ndarray:
         """(F, 3) goals at the largest frontiers of the ultrasonic's grid (`explore.frontier`;
         narrower than the robot: none), at most `frontier_goals_per_round`: per frontier,
-        its cell nearest its middle that the robot can reach on `grid`, facing the unknown
-        space within half the ultrasonic's range (`explore.frontier.toward_unknown`). None
-        within `goal_separation_m` of a goal given up, or of a goal reached facing within 60
-        degrees of the same way (it looked there already).
+        its cell nearest its middle that the robot can reach on `grid` and that lies farther
+        than `goal_separation_m` from every goal given up, facing the unknown space within
+        half the ultrasonic's range (`explore.frontier.toward_unknown`). None within
+        `goal_separation_m` of a goal reached facing within 60 degrees of the same way (it
+        looked there already). A goal given up rules out its own cells, not the frontier:
+        on apartment 7 the kitchen door and the corridor's unexplored north end were one
+        frontier, its middle cell was at the door, the goal there was given up, and the
+        corridor was never tried (the bedroom beyond it never visited).
 
         None at all while the filter's spread is above `MissionFilterConfig.relocalise_std_m`:
         the robot explores the unknown only while it knows where it is. A frontier leads
@@ -444,7 +448,7 @@ class AdaptiveMission:
         mask = reachable_mask(self._from_here(grid), self.body.est.pose[:2], c.max_path_cost)
         out: list[np.ndarray] = []
         for cells in frontiers(self._sonar, 2 * c.robot_radius_m):
-            ok = reachable_at(grid, mask, cells)
+            ok = reachable_at(grid, mask, cells) & ~self.near_given_up(cells)
             if not ok.any():
                 continue
             xy = cells[ok][np.argmin(np.linalg.norm(cells[ok] - cells.mean(0), axis=1))]
@@ -754,13 +758,18 @@ class AdaptiveMission:
         upright = {i: cam for i, cam in upright.items() if i in held}
         joined = {i: cam.with_pose(cam.cam_from_world, name=f"photo_{i:05d}") for i, cam in upright.items()
                   if i not in known and (self.photos[i].stage != "localise" or self.photos[i].camera is None)}
+        tracks = (stereo_tracks({**self._map_cameras(), **joined}, self._feats, c.localizer.triangulation,
+                                only=set(joined)) if joined else Tracks.empty())
+        if (through := self.seen_through(tracks.points)) > c.repose.max_seen_through:
+            log.info(f"re-posing by SfM: the map is unchanged: {100 * through:.0f} % of the {len(tracks.points)} points "
+                     f"the {len(joined)} photos new to it would add lie where its photos saw empty space")
+            return 0
         for i, cam in joined.items():
             self.photos[i].camera = cam
         self.unfixed -= set(joined)
         self.reposed |= {i for i in joined if self.photos[i].stage == "localise"}
         new = {i: cam for i, cam in joined.items() if self.photos[i].stage != "localise"}
         if joined:
-            tracks = stereo_tracks(self._map_cameras(), self._feats, c.localizer.triangulation, only=set(joined))
             self.map = extend_map(self.map, new, tracks, c.map)
             self.tracks = self.tracks + tracks
             self.fmap = self._feature_map()
@@ -770,8 +779,17 @@ class AdaptiveMission:
             self.body.est.update_pnp(self.pose_of_camera(joined[last].cam_from_world), support[last])
             log.info("re-posing by SfM: the robot's last photo posed, the filter's measurement")
         log.info(f"re-posing by SfM: {len(cams)} of {len(self.photos)} photos posed (anchors agree to "
-                 f"{100 * err:.1f} cm), {len(joined)} joined the map ({len(new)} of the model)")
+                 f"{100 * err:.1f} cm), {len(joined)} joined the map ({len(new)} of the model; "
+                 f"{100 * through:.0f} % of their points where its photos saw empty space)")
         return len(joined)
+
+    def seen_through(self, points: np.ndarray) -> float:
+        """The share of world `points` (N, 3) (m) lying where the map's photos saw empty space
+        (`ViewQuality.seen_free` of the last goal choice, by `grid_seen_margin_m`); 0 with no
+        point or before the first goal choice."""
+        if self._seen_free is None or len(points) == 0:
+            return 0.0
+        return float(self._seen_free(points, self.config.grid_seen_margin_m).mean())
 
 
 def start_filter(robot: Robot, body: Body, photos: list[MissionPhoto], rmap: RobotMap,

@@ -8,6 +8,7 @@ import pytest
 import shapely
 
 from explore.candidates import sample_candidates
+from explore.frontier import frontiers
 from explore.path_simplify import plan_path
 from ibr.scene import load_scene
 from ibr.synthetic import make_world
@@ -232,6 +233,38 @@ def test_the_ultrasonic_outranks_stray_map_points(office):
     far = goals[np.hypot(*(goals[:, :2] - m.body.est.pose[:2]).T) > 0.6]
     assert len(far) and plan_path(heard._from_here(grid), m.body.est.pose[:2], far[0, :2],
                                   max_cost=m.config.max_path_cost) is not None
+
+
+def test_a_goal_given_up_rules_out_its_cells_not_its_frontier(office):
+    """A frontier whose goal was given up still gets a goal, at its cells away from the one
+    given up (apartment 7: the kitchen door and the corridor's far end were one frontier)."""
+    m, _, _ = office
+    _, _, grid = m.choose_goals()
+    first = m.frontier_goals(grid)[0]
+    cells = next(f for f in frontiers(m._sonar, 2 * m.config.robot_radius_m)
+                 if np.linalg.norm(f - first[:2], axis=1).min() < 1e-9)
+    assert np.linalg.norm(cells - first[:2], axis=1).max() > 2 * m.config.goal_separation_m  # room for another
+    m.given_up_goals.append(first.copy())
+    try:
+        again = m.frontier_goals(grid)
+    finally:
+        m.given_up_goals.pop()
+    on_it = [g for g in again if np.linalg.norm(cells - g[:2], axis=1).min() < 1e-9]
+    assert len(on_it) == 1
+    assert np.hypot(*(on_it[0][:2] - first[:2])) >= m.config.goal_separation_m
+
+
+def test_points_in_the_open_room_are_seen_through_and_points_on_its_surfaces_are_not(office):
+    """`seen_through`, the check of a re-posing's new points: a point on the room's surfaces
+    lies behind what the photos saw; one in the open room, at the camera's height, in front."""
+    m, robot, _ = office
+    m.choose_goals()
+    rng = np.random.default_rng(5)
+    on_surfaces = surface_samples(robot.world.mesh, 1000, rng).points
+    in_the_open = sample_candidates(robot.world.free_space, 1000, rng, 0.3)[:, :2]
+    assert m.seen_through(on_surfaces) < 0.1
+    assert m.seen_through(np.c_[in_the_open, np.full(len(in_the_open), m.cam_height)]) > 0.5
+    assert m.seen_through(np.zeros((0, 3))) == 0.0
 
 
 def test_an_unlocalised_robot_is_sent_to_no_frontier(office):
