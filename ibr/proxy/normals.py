@@ -29,9 +29,9 @@ def merge_repeats(points: np.ndarray, normals: np.ndarray, colors: np.ndarray,
     Pair tracks triangulate one feature from several pairs a millimetre or two apart;
     merged, the cloud's spacing (`poisson.drop_faces_far_from_points`) and Poisson's sample
     weights count places on the surface, not repeats of one feature."""
-    points = np.asarray(points, float).reshape(-1, 3)
+    points, normals = np.asarray(points, float).reshape(-1, 3), np.asarray(normals, float).reshape(-1, 3)
     if len(points) == 0:
-        return points, np.asarray(normals, float).reshape(-1, 3), np.asarray(colors, np.uint8).reshape(-1, 3)
+        return points, normals, np.asarray(colors, np.uint8).reshape(-1, 3)
     key = np.floor((points - points.min(axis=0)) / cell_m).astype(np.int64)
     _, first, inv, count = np.unique(key, axis=0, return_index=True, return_inverse=True, return_counts=True)
     inv = inv.ravel()

@@ -722,12 +722,13 @@ class AdaptiveMission:
         Photos the map lacks join it at their SfM pose: model photos unposed or posed only at
         the filter's estimate, and localise photos no fix posed (tracks only, `reposed`),
         each only where the odometry ties it to map photos SfM agrees with (`_odometry_held`).
-        Their tracks extend the map, so PnP works there from now on. When the robot's last
-        photo, taken where it still stands, is one of them, its pose is the filter's
-        measurement, as a fix would be. SfM runs in a child process stopped when the step,
-        begun at `started` (`time.perf_counter()`; None: now), has run
-        `ReposeConfig.time_share` of `step_limit_s`; the map is then unchanged. Returns how
-        many photos joined the map."""
+        Their tracks extend the map, so PnP works there from now on, unless more than
+        `ReposeConfig.max_seen_through` of those tracks lie where the map's photos saw empty
+        space (`seen_through`): then none joins. When the robot's last photo, taken where it
+        still stands, is one of them, its pose is the filter's measurement, as a fix would
+        be. SfM runs in a child process stopped when the step, begun at `started`
+        (`time.perf_counter()`; None: now), has run `ReposeConfig.time_share` of
+        `step_limit_s`; the map is then unchanged. Returns how many photos joined the map."""
         c = self.config
         self.failed_at_repose = self.failed
         if self._sfm_work is None:  # features and matches kept between calls; removed with the mission
