@@ -69,12 +69,18 @@ def sample_odometry_noise(u: np.ndarray, alphas, n: int, rng: np.random.Generato
 
 
 def sample_motion_model_odometry(poses: np.ndarray, odom_a: np.ndarray, odom_b: np.ndarray,
-                                 alphas, rng: np.random.Generator, in_place: bool = False) -> np.ndarray:
+                                 alphas, rng: np.random.Generator, in_place: bool = False,
+                                 in_place_alpha4: float = 0.0) -> np.ndarray:
     """Thrun's sample_motion_model_odometry for N poses at once: poses (N, 3) moved by the
     motion the odometry reports between odometry poses odom_a and odom_b, with noise;
     `in_place`: a commanded turn in place, of which only the heading change is motion
-    (`turn_in_place`)."""
-    u = turn_in_place(odom_a, odom_b) if in_place else odometry_decomposition(odom_a, odom_b)
+    (`turn_in_place`), its centre's slip drawn with `in_place_alpha4` (trans-from-rot, m^2
+    per rad^2) in place of alpha4: alpha4 is the noise of the translation the odometry
+    *reads*, and that reading is discarded."""
+    if in_place:
+        u, alphas = turn_in_place(odom_a, odom_b), (*tuple(alphas)[:3], in_place_alpha4)
+    else:
+        u = odometry_decomposition(odom_a, odom_b)
     return apply_odometry(poses, sample_odometry_noise(u, alphas, len(np.atleast_2d(poses)), rng))
 
 

@@ -7,7 +7,9 @@ vision fixes, so path following consumes a filter's estimate, never the simulato
   heading (Gaussian, `compass_sigma_rad`). A commanded turn in place moves them by the
   odometry's heading change alone (`motion_models.turn_in_place`): the translation the
   odometry reads while the robot turns on the spot is slip, and following it carried the
-  estimate off with it.
+  estimate off with it. Their headings are then drawn from the compass's posterior (the
+  optimal importance density), so the turns the robot makes between photos neither spread
+  nor resample their positions (`_turn_with_compass`).
 - Measurement at waypoints: the SIFT + RANSAC PnP fix of a photo against the map
   (`localization.feature_localizer`) as a Mixture-MCL step (Thrun, Fox, Burgard & Dellaert,
   "Robust Monte Carlo localization for mobile robots", 2001; the same idea as
@@ -31,7 +33,7 @@ import numpy as np
 import shapely
 
 from localization.dead_reckoning import CompassDeadReckoning
-from localization.motion_models import wrap_angle
+from localization.motion_models import turn_in_place, wrap_angle
 from localization.particle_filter import ParticleFilter, ParticleFilterConfig
 from robot.protocol import MotionResult, Robot
 from robot.mission.random_stage import Body
@@ -125,14 +127,43 @@ class MissionLocalizer:
                 in_place: bool = False) -> None:
         """A move: odometry prediction, then the compass heading likelihood. `in_place`: a
         commanded turn in place, whose odometry translation is slip, not motion
-        (`motion_models.turn_in_place`)."""
+        (`motion_models.turn_in_place`), and whose headings are drawn from the compass's
+        posterior (`_turn_with_compass`)."""
         self.dead_reckoning.update(odom_before, odom_after, compass_rad, in_place)
-        self.pf.predict(odom_before, odom_after, in_place)
-        if self.config.compass_sigma_rad > 0:
-            d = wrap_angle(self.pf.particles[:, 2] - compass_rad)
-            self.pf.update(-0.5 * (d / self.config.compass_sigma_rad) ** 2)
-            self.pf.resample_if_needed()
+        if in_place and self.config.compass_sigma_rad > 0:
+            self._turn_with_compass(turn_in_place(odom_before, odom_after)[0], compass_rad)
+        else:
+            self.pf.predict(odom_before, odom_after, in_place)
+            if self.config.compass_sigma_rad > 0:
+                d = wrap_angle(self.pf.particles[:, 2] - compass_rad)
+                self.pf.update(-0.5 * (d / self.config.compass_sigma_rad) ** 2)
+        self.pf.resample_if_needed()
         self._update_estimate()
+
+    def _turn_with_compass(self, rot: float, compass_rad: float) -> None:
+        """A turn in place by `rot` (rad, odometry) with the compass reading `compass_rad`,
+        by the optimal importance density (Doucet, Godsill & Andrieu 2000): each particle's
+        heading is drawn from the product of its motion's heading noise (Thrun's alpha1,
+        N(theta + rot, alpha1 rot^2)) and the compass's N(compass, sigma^2), and weighted by
+        that product's mass, N(compass; theta + rot, alpha1 rot^2 + sigma^2). Its position
+        moves by the turn's slip alone (`ParticleFilterConfig.in_place_alpha4`). Drawn from
+        the motion and weighted by the compass, as a drive is, a 90-degree turn's 20-degree
+        heading noise against the compass's 5 left a fifth of the particles' weight, every
+        turn resampled the positions, and the estimate of a robot turning on the spot walked
+        6-10 cm in 40 turns (0.4-1.3 cm so; `test_turning_in_place_leaves_the_estimate_where_the_robot_is`)."""
+        pf = self.pf
+        x = pf.particles.copy()
+        var_motion, var_compass = pf.config.alphas[0] * rot ** 2, self.config.compass_sigma_rad ** 2
+        heading = x[:, 2] + rot
+        slip = pf.rng.normal(size=len(x)) * np.sqrt(pf.config.in_place_alpha4) * abs(rot)
+        x[:, 0] += slip * np.cos(heading)
+        x[:, 1] += slip * np.sin(heading)
+        d = wrap_angle(compass_rad - heading)
+        mean = heading + d * var_motion / (var_motion + var_compass)
+        sd = np.sqrt(var_motion * var_compass / (var_motion + var_compass))
+        x[:, 2] = wrap_angle(mean + pf.rng.normal(size=len(x)) * sd)
+        pf.particles = x
+        pf.update(-0.5 * d ** 2 / (var_motion + var_compass))
 
     def pnp_sigmas(self, n_inliers: int) -> np.ndarray:
         c = self.config

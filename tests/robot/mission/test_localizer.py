@@ -96,23 +96,29 @@ def test_turning_in_place_leaves_the_estimate_where_the_robot_is():
     """A robot that only turns in place stays where it is, but its odometry reads the wheels'
     slip as translation (the simulator's trans-from-rot noise): 40 turns of 45-180 degrees
     walk the odometry's position 0.2-0.8 m off. The dead reckoning takes a commanded turn as
-    a turn and stays put; the filter's particles spread by its own trans-from-rot noise
-    (alpha4), but their mean is not carried along with the slip (on the odometry's
-    translation it was off by 0.13-1.1 m, as far as the odometry)."""
+    a turn and stays put, and so does the filter: its mean is not carried along with the slip
+    (on the odometry's translation it was off by 0.13-1.1 m, as far as the odometry), its
+    particles spread by the slip of a turn in place (`in_place_alpha4`, 1 cm per radian), not
+    by the noise of the odometry's reading (alpha4: 0.64-0.83 m of spread after the 40 turns),
+    and the compass does not resample them at every turn (`_turn_with_compass`: the mean
+    walked 6-10 cm in the 40 turns, 0.4-1.3 cm so)."""
     world = make_world("office", 0)
     start = np.array([*loop_route(world)[0], 0.0])
-    odo, est = [], []
+    odo, est, spread = [], [], []
     for seed in range(6):
         robot = SimRobot(world, SimRobotConfig(image_size=(24, 16)), np.random.default_rng(seed),
                          start_pose=tuple(start))
         rng = np.random.default_rng(seed + 100)
         body = FilteredBody(robot, MissionLocalizer(start, start[None, :2], MissionFilterConfig(), rng,
                                                     np.array([0.01, 0.01, 0.02])))
+        turns = np.random.default_rng(seed + 200)  # the same turns whatever the filter draws
         for _ in range(40):
-            body.move(turn=float(rng.uniform(np.pi / 4, np.pi) * rng.choice([-1.0, 1.0])))
+            body.move(turn=float(turns.uniform(np.pi / 4, np.pi) * turns.choice([-1.0, 1.0])))
         odo.append(np.hypot(*robot.odometry()[:2]))
         est.append(np.hypot(*(body.est.pose[:2] - start[:2])))
+        spread.append(body.est.spread_m)
         assert np.hypot(*(body.est.dead_reckoning.pose[:2] - start[:2])) < 1e-9
         assert abs(wrap_angle(body.est.pose[2] - robot.true_pose[2])) < np.radians(5)
     assert min(odo) > 0.1, odo
     assert np.median(est) < 0.3 * np.median(odo), (est, odo)
+    assert max(est) < 0.03 and max(spread) < 0.3, (est, spread)
