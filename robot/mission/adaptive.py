@@ -116,6 +116,11 @@ class AdaptiveConfig:
     """How far to back up from an obstacle (m)."""
     off_path_m: float = 0.3
     """How far to drive off the path after an obstacle before re-planning (m)."""
+    trail_drives: int = 10
+    """Drives the robot remembers (`AdaptiveMission.trail`): where it has just driven stays
+    passable to its planner. A count of the robot's own moves: a recovery from a bump is two
+    drives, a stereo pair's side step one or two, so ten reach back over a few of them to
+    where a plan had brought it."""
     max_legs_per_goal: int = 40
     """Legs after which a goal is given up (a planner or localisation fault never loops forever)."""
     max_path_cost: float = 0.35
@@ -160,6 +165,13 @@ class AdaptiveConfig:
     look: LookConfig | None = field(default_factory=LookConfig)
     """Before a localise photo, turn to the heading that sees the most map points SIFT can
     match (`robot.mission.look_heading`); None: photograph wherever the path left the robot."""
+
+
+def _near_segment(xy: np.ndarray, a: np.ndarray, b: np.ndarray, radius: float) -> np.ndarray:
+    """(N,) bool: the points xy (N, 2) within `radius` of the segment from a to b (2,)."""
+    ab = b - a
+    t = np.clip((xy - a) @ ab / max(float(ab @ ab), 1e-12), 0.0, 1.0)
+    return np.linalg.norm(xy - (a + t[:, None] * ab), axis=1) < radius
 
 
 def pick_goals(poses: np.ndarray, scores: np.ndarray, k: int, separation_m: float) -> np.ndarray:
@@ -207,6 +219,9 @@ class AdaptiveMission:
         estimate 0.2-0.5 m off would triangulate wrong points, and the next fixes would
         follow them)."""
         self._last_view: np.ndarray | None = None  # odometry when the last photo was taken
+        self.trail: list[np.ndarray] = []
+        """The estimate's xy (world, m) before and after each of the last `trail_drives`
+        drives, (2, 2) each: the robot has just driven there (`_from_here`). Journalled."""
         self.stepped_from: np.ndarray | None = None
         """Where (world xy, m, on the estimate) the robot stood on its plan before the stereo
         pair's side step (`capture_at`); None once it follows a plan again (`_way_back`).
@@ -557,14 +572,26 @@ class AdaptiveMission:
         start from the same free cells even when the estimate is a little off. Cells the
         map's points make dear stay as they are (a wall near the robot is not opened).
         After a stereo pair's side step, the robot's way back to where its plan brought it
-        is passable too (`_way_back`)."""
+        is passable too (`_way_back`), and so are its last drives (`_on_trail`)."""
         H, W = grid.shape
         xy = grid.cell_to_world(np.indices((H, W)).reshape(2, -1).T)
         r = self.config.robot_radius_m + 2 * self.spread()
         here = (np.linalg.norm(xy - self.body.est.pose[:2], axis=1) < r).reshape(H, W)
         cost = np.where(here & np.isinf(grid.cost), self.config.max_path_cost, grid.cost)
-        back = self._way_back(xy).reshape(H, W)
+        back = (self._way_back(xy) | self._on_trail(xy)).reshape(H, W)
         return replace(grid, cost=np.where(back, np.minimum(cost, self.config.max_path_cost), cost))
+
+    def _on_trail(self, xy: np.ndarray) -> np.ndarray:
+        """(N,) bool: the points xy (N, 2) within `robot_radius_m` of one of the robot's last
+        drives (`trail`, on the estimate): it has just driven there, whatever a grid rebuilt
+        since says. Office 1, round 2: after two recoveries from bumps the robot stood in a
+        pocket of 20 cells the new round's grid walled in with blocked cells, one or two cells
+        wide, between it and the free space it had come from; the round's next five goals
+        were given up for "no path" where it stood."""
+        near = np.zeros(len(xy), bool)
+        for a, b in self.trail:
+            near |= _near_segment(xy, a, b, self.config.robot_radius_m)
+        return near
 
     def _way_back(self, xy: np.ndarray) -> np.ndarray:
         """(N,) bool: the points xy (N, 2) within `robot_radius_m` of the straight drive from
@@ -578,10 +605,7 @@ class AdaptiveMission:
         plan."""
         if self.stepped_from is None:
             return np.zeros(len(xy), bool)
-        a, b = self.stepped_from, self.body.est.pose[:2]
-        ab = b - a
-        t = np.clip((xy - a) @ ab / max(float(ab @ ab), 1e-12), 0.0, 1.0)
-        return np.linalg.norm(xy - (a + t[:, None] * ab), axis=1) < self.config.robot_radius_m
+        return _near_segment(xy, self.stepped_from, self.body.est.pose[:2], self.config.robot_radius_m)
 
     def _bumped(self, motion, grid):
         """Remember where the bumper touched (the robot's edge ahead of, or behind, the
@@ -599,14 +623,21 @@ class AdaptiveMission:
         turn = wrap_angle(np.arctan2(d[1], d[0]) - est[2])
         if abs(turn) > 1e-3:
             self.body.move(turn=float(turn))
-        return self.body.move(drive=float(min(self.config.leg_m, np.hypot(*d))))
+        return self._drive(float(min(self.config.leg_m, np.hypot(*d))))
+
+    def _drive(self, distance_m: float):
+        """Drive `distance_m` (m; negative: backwards), remembering the drive in `trail`."""
+        before = self.body.est.pose[:2].copy()
+        motion = self.body.move(drive=distance_m)
+        self.trail = [*self.trail, np.array([before, self.body.est.pose[:2]])][-self.config.trail_drives:]
+        return motion
 
     def _recover(self, motion) -> None:
         """Back off an obstacle, turn away and drive a little off the path."""
         c = self.config
-        self.body.move(drive=c.backoff_m if motion.bumper_rear else -c.backoff_m)
+        self._drive(c.backoff_m if motion.bumper_rear else -c.backoff_m)
         self.body.move(turn=float(self.rng.uniform(np.pi / 4, np.pi / 2) * self.rng.choice([-1.0, 1.0])))
-        self.body.move(drive=c.off_path_m)
+        self._drive(c.off_path_m)
 
     def go_to(self, goal: np.ndarray, grid) -> bool:
         """Drive to goal (3,) on the plan; True when reached. Why a goal was given up is
@@ -670,9 +701,9 @@ class AdaptiveMission:
         for k in range(1, min(c.photos_per_goal, budget)):
             side = goal[2] + (np.pi / 2 if k % 2 else -np.pi / 2)
             self._face(side)
-            motion = self.body.move(drive=c.stereo_baseline_m * k)
+            motion = self._drive(c.stereo_baseline_m * k)
             if motion.blocked:
-                self.body.move(drive=-c.backoff_m)
+                self._drive(-c.backoff_m)
             self.localise_here()  # a side step on odometry alone is 8 cm off (14 % per drive)
             self._face(goal[2])
             out.append(self.take_photo("goal"))

@@ -122,6 +122,7 @@ class SessionJournal(MissionJournal):
                  "given_up_goals": mission.given_up_goals, "bumps": mission.bumps,
                  "unfixed": sorted(mission.unfixed), "failed_at_repose": mission.failed_at_repose,
                  "reposed": sorted(mission.reposed), "stepped_from": mission.stepped_from,
+                 "trail": np.array(mission.trail).reshape(-1, 2, 2),
                  "rng": mission.rng.bit_generator.state}
         if hasattr(self.robot, "true_pose"):
             state["sim"] = self.robot.state()

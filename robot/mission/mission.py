@@ -237,6 +237,7 @@ def _resume_adaptive(robot: Robot, state: dict, config: AdaptiveConfig, rng: np.
     mission.goals_reached = [np.asarray(g, float) for g in state["goals"]]
     mission.given_up_goals = [np.asarray(g, float) for g in state.get("given_up_goals", [])]
     mission.bumps = [np.asarray(b, float) for b in state.get("bumps", [])]
+    mission.trail = [np.asarray(s, float) for s in state.get("trail", [])]
     if state.get("stepped_from") is not None:  # the last round ended on a stereo pair's side step
         mission.stepped_from = np.asarray(state["stepped_from"], float)
     result = MissionResult(photos, rmap, rounds=state["rounds"])

@@ -224,6 +224,32 @@ def test_after_a_side_step_the_way_back_is_open(office):
     assert back.tolist() == [True, False, False]  # the fence stays shut elsewhere
 
 
+def test_the_robots_last_drives_stay_open(office):
+    """A robot whose last drives ended in cells a rebuilt grid blocks (here: inside a fence of
+    map points, after a recovery's two drives in from 0.8 m outside) plans out along those
+    drives, and only there: without them on record nothing outside is reachable."""
+    m, _, _ = office
+    est = m.body.est.pose[:2]
+    pen = fenced(m, 0.4)
+    goals, _, _ = m.choose_goals()
+    far = goals[np.hypot(*(goals[:, :2] - est).T) > 1.0]
+    assert len(far)
+    grid = pen.nav_grid(shapely.Polygon([(-9, -9), (9, -9), (9, 9), (-9, 9)]))
+
+    def plan():
+        return plan_path(pen._from_here(grid), est, far[0, :2], max_cost=m.config.max_path_cost)
+
+    assert pen.trail == [] and plan() is None
+    pen.trail = [np.array([est + [0.8, 0.0], est + [0.5, 0.1]]), np.array([est + [0.5, 0.1], est])]
+    path = plan()
+    assert path is not None
+    dense = np.concatenate([np.linspace(a, b, 50) for a, b in zip(path[:-1], path[1:])])
+    out = dense[np.argmax(np.hypot(*(dense - est).T) > 0.45)]  # where it crosses the fence
+    assert pen._on_trail(out[None])[0]  # out the way it came in
+    near = pen._on_trail(np.array([est + [0.4, 0.05], est + [-0.4, 0.0], est + [0.0, 0.4]]))
+    assert near.tolist() == [True, False, False]  # the fence stays shut elsewhere
+
+
 def test_the_ultrasonic_outranks_stray_map_points(office):
     """Map points the ultrasonic's readings contradict (the fence of `fenced`, where the real
     office is empty) make the grid dear, not blocked: the robot is not trapped by them."""
