@@ -197,29 +197,35 @@ def test_a_mission_that_can_reach_no_goal_stops(office):
     assert len(trapped.photos) == n and trapped.given_up == 0
 
 
-def test_after_a_side_step_the_way_back_is_open(office):
-    """A stereo pair's side step that ended in cells the grid blocks (here: inside a fence of
-    map points, the robot 0.6 m from where its plan brought it) leaves the drive back
-    passable, and only that: from inside, the robot plans to goals outside through the gap,
-    and without the side step on record nothing outside is reachable."""
-    m, _, _ = office
+def penned_planner(m: AdaptiveMission):
+    """(the mission fenced in 0.4 m around its estimate, the estimate xy, plan): plan() is the
+    path from the estimate to a goal more than 1 m away on the fenced grid (None: none)."""
     est = m.body.est.pose[:2]
     pen = fenced(m, 0.4)
     goals, _, _ = m.choose_goals()
     far = goals[np.hypot(*(goals[:, :2] - est).T) > 1.0]
     assert len(far)
     grid = pen.nav_grid(shapely.Polygon([(-9, -9), (9, -9), (9, 9), (-9, 9)]))
+    return pen, est, lambda: plan_path(pen._from_here(grid), est, far[0, :2], max_cost=m.config.max_path_cost)
 
-    def plan():
-        return plan_path(pen._from_here(grid), est, far[0, :2], max_cost=m.config.max_path_cost)
 
+def fence_crossing(path: np.ndarray, est: np.ndarray) -> np.ndarray:
+    """Where the path (M, 2) first leaves the 0.4 m fence of `penned_planner` around `est`."""
+    dense = np.concatenate([np.linspace(a, b, 50) for a, b in zip(path[:-1], path[1:])])
+    return dense[np.argmax(np.hypot(*(dense - est).T) > 0.45)]
+
+
+def test_after_a_side_step_the_way_back_is_open(office):
+    """A stereo pair's side step that ended in cells the grid blocks (here: inside a fence of
+    map points, the robot 0.6 m from where its plan brought it) leaves the drive back
+    passable, and only that: from inside, the robot plans to goals outside through the gap,
+    and without the side step on record nothing outside is reachable."""
+    pen, est, plan = penned_planner(office[0])
     assert plan() is None
     pen.stepped_from = est + np.array([0.6, 0.0])  # it stood outside, then stepped in
     path = plan()
     assert path is not None
-    dense = np.concatenate([np.linspace(a, b, 50) for a, b in zip(path[:-1], path[1:])])
-    out = dense[np.argmax(np.hypot(*(dense - est).T) > 0.45)]  # where it crosses the fence
-    assert pen._way_back(out[None])[0]  # out the way it came in
+    assert pen._way_back(fence_crossing(path, est)[None])[0]  # out the way it came in
     back = pen._way_back(np.array([est + [0.4, 0.0], est + [-0.4, 0.0], est + [0.0, 0.4]]))
     assert back.tolist() == [True, False, False]  # the fence stays shut elsewhere
 
@@ -228,24 +234,12 @@ def test_the_robots_last_drives_stay_open(office):
     """A robot whose last drives ended in cells a rebuilt grid blocks (here: inside a fence of
     map points, after a recovery's two drives in from 0.8 m outside) plans out along those
     drives, and only there: without them on record nothing outside is reachable."""
-    m, _, _ = office
-    est = m.body.est.pose[:2]
-    pen = fenced(m, 0.4)
-    goals, _, _ = m.choose_goals()
-    far = goals[np.hypot(*(goals[:, :2] - est).T) > 1.0]
-    assert len(far)
-    grid = pen.nav_grid(shapely.Polygon([(-9, -9), (9, -9), (9, 9), (-9, 9)]))
-
-    def plan():
-        return plan_path(pen._from_here(grid), est, far[0, :2], max_cost=m.config.max_path_cost)
-
+    pen, est, plan = penned_planner(office[0])
     assert pen.trail == [] and plan() is None
     pen.trail = [np.array([est + [0.8, 0.0], est + [0.5, 0.1]]), np.array([est + [0.5, 0.1], est])]
     path = plan()
     assert path is not None
-    dense = np.concatenate([np.linspace(a, b, 50) for a, b in zip(path[:-1], path[1:])])
-    out = dense[np.argmax(np.hypot(*(dense - est).T) > 0.45)]  # where it crosses the fence
-    assert pen._on_trail(out[None])[0]  # out the way it came in
+    assert pen._on_trail(fence_crossing(path, est)[None])[0]  # out the way it came in
     near = pen._on_trail(np.array([est + [0.4, 0.05], est + [-0.4, 0.0], est + [0.0, 0.4]]))
     assert near.tolist() == [True, False, False]  # the fence stays shut elsewhere
 
@@ -351,11 +345,13 @@ def test_bumps_of_earlier_goals_are_dear_not_walls(office):
     """Contacts marked on the way to earlier goals (a ring of them around the robot, as
     misplaced marks can seal a doorway) make the grid dear: goals beyond them are still
     drawn and planned to. As walls (the goal being tried treats its own bumps so), they
-    would cut the robot off."""
+    would cut the robot off (its last drives and side step forgotten: the earlier tests'
+    drives, which cross the ring, would stay open, `_on_trail`, `_way_back`)."""
     m, _, _ = office
     est = m.body.est.pose[:2]
     a = np.linspace(0, 2 * np.pi, 60, endpoint=False)
-    m.bumps = list(est + 0.6 * np.c_[np.cos(a), np.sin(a)])
+    trail, stepped_from = m.trail, m.stepped_from
+    m.bumps, m.trail, m.stepped_from = list(est + 0.6 * np.c_[np.cos(a), np.sin(a)]), [], None
     try:
         goals, _, grid = m.choose_goals()
         far = goals[np.hypot(*(goals[:, :2] - est).T) > 0.8]
@@ -364,7 +360,7 @@ def test_bumps_of_earlier_goals_are_dear_not_walls(office):
         walls = m._with_bumps(grid, m.bumps)
         assert plan_path(m._from_here(walls), est, far[0, :2], max_cost=m.config.max_path_cost) is None
     finally:
-        m.bumps = []
+        m.bumps, m.trail, m.stepped_from = [], trail, stepped_from
 
 
 def test_a_localise_photo_first_turns_to_the_map(office):
