@@ -641,7 +641,9 @@ class AdaptiveMission:
 
     def go_to(self, goal: np.ndarray, grid) -> bool:
         """Drive to goal (3,) on the plan; True when reached. Why a goal was given up is
-        left in `self.give_up_reason` ("no path", "obstacles", "legs")."""
+        left in `self.give_up_reason` ("no path"; "no path past its bumps", when the bumps met
+        on the way to it cut every path, the goal's own cells often among them; "obstacles";
+        "legs")."""
         c = self.config
         obstacles, legs = 0, 0
         self.give_up_reason = ""
@@ -649,7 +651,7 @@ class AdaptiveMission:
         while obstacles <= c.max_obstacles and legs < c.max_legs_per_goal:
             path = plan_path(self._from_here(grid), self.body.est.pose[:2], goal[:2], max_cost=c.max_path_cost)
             if path is None:
-                self.give_up_reason = "no path"
+                self.give_up_reason = "no path past its bumps" if obstacles else "no path"
                 return False
             self.obs.path(path)
             t, blocked = 1, False

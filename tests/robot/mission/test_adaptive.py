@@ -129,18 +129,38 @@ def test_gives_a_goal_up_after_k_obstacles(office, monkeypatch):
 
     monkeypatch.setattr(robot, "drive", always_bumps)
     # look=None: the localise photos between bumps keep the heading, so the robot backs off
-    # the way it came; turned to the map, it can end walled in by its own 5 bumps ("no path")
+    # the way it came; turned to the map, it can end walled in by its own 5 bumps ("no path past its bumps")
     monkeypatch.setattr(m, "config", replace(m.config, off_path_m=0.2, max_obstacles=5, look=None))
     goals, _, grid = m.choose_goals()
     far = goals[np.argmax(np.hypot(*(goals[:, :2] - m.body.est.pose[:2]).T))]
     # an open floor: the bumps alone block the plans, so no wall of the office closes the
-    # gaps between them into "no path" (which depended on where earlier tests left the robot)
+    # gaps between them into "no path past its bumps" (which depended on where earlier tests left the robot)
     grid = replace(grid, cost=np.zeros_like(grid.cost))
     try:
         assert not m.go_to(far, grid) and m.give_up_reason == "obstacles"
         assert len(drives) == 6  # k = 5 obstacles survived, the 6th gives up
         # each contact was remembered and is blocked for every later plan
         assert len(m.bumps) == 6 and np.isinf(m._with_bumps(grid, m.bumps).cost_at(np.array(m.bumps))).all()
+    finally:
+        m.bumps = []
+
+
+def test_a_goal_behind_its_own_bump_is_given_up_past_its_bumps(office, monkeypatch):
+    """A goal just beyond what the robot bumps into on its way (the goal within the robot's
+    radius of the contact, which stays blocked while that goal is tried) has no path after
+    the bump: given up for "no path past its bumps", told apart from a goal the planner
+    found no path to before the robot drove."""
+    m, robot, _ = office
+    real_drive = robot.drive
+    monkeypatch.setattr(robot, "drive", lambda d: MotionResult(np.zeros(3), bumper_front=True) if d > 0.2
+                        else real_drive(d))
+    monkeypatch.setattr(m, "config", replace(m.config, look=None))
+    est = m.body.est.pose
+    goal = np.array([*(est[:2] + 0.28 * np.array([np.cos(est[2]), np.sin(est[2])])), est[2]])
+    _, _, grid = m.choose_goals()
+    try:
+        assert not m.go_to(goal, replace(grid, cost=np.zeros_like(grid.cost)))
+        assert m.give_up_reason == "no path past its bumps" and len(m.bumps) >= 1
     finally:
         m.bumps = []
 
