@@ -33,7 +33,7 @@ import numpy as np
 import shapely
 
 from localization.dead_reckoning import CompassDeadReckoning
-from localization.motion_models import turn_in_place, wrap_angle
+from localization.motion_models import apply_odometry, turn_in_place, wrap_angle
 from localization.particle_filter import ParticleFilter, ParticleFilterConfig
 from robot.protocol import MotionResult, Robot
 from robot.mission.random_stage import Body
@@ -152,16 +152,15 @@ class MissionLocalizer:
         turn resampled the positions, and the estimate of a robot turning on the spot walked
         6-10 cm in 40 turns (0.4-1.3 cm so; `test_turning_in_place_leaves_the_estimate_where_the_robot_is`)."""
         pf = self.pf
-        x = pf.particles.copy()
+        n = len(pf.particles)
         var_motion, var_compass = pf.config.alphas[0] * rot ** 2, self.config.compass_sigma_rad ** 2
-        heading = x[:, 2] + rot
-        slip = pf.rng.normal(size=len(x)) * np.sqrt(pf.config.in_place_alpha4) * abs(rot)
-        x[:, 0] += slip * np.cos(heading)
-        x[:, 1] += slip * np.sin(heading)
+        heading = pf.particles[:, 2] + rot
+        slip = pf.rng.normal(size=n) * np.sqrt(pf.config.in_place_alpha4) * abs(rot)
+        x = apply_odometry(pf.particles, np.c_[np.full(n, rot), slip, np.zeros(n)])  # turned, then slipped
         d = wrap_angle(compass_rad - heading)
         mean = heading + d * var_motion / (var_motion + var_compass)
         sd = np.sqrt(var_motion * var_compass / (var_motion + var_compass))
-        x[:, 2] = wrap_angle(mean + pf.rng.normal(size=len(x)) * sd)
+        x[:, 2] = wrap_angle(mean + pf.rng.normal(size=n) * sd)
         pf.particles = x
         pf.update(-0.5 * d ** 2 / (var_motion + var_compass))
 
