@@ -192,10 +192,21 @@ def refine(gi, gj, cam_i: Camera, cam_j: Camera, uv: np.ndarray, X: np.ndarray, 
         A, g = (J * wgt[:, None]).T @ J, (J * wgt[:, None]).T @ r
         step = -np.linalg.solve(A + 1e-9 * np.eye(len(th)), g)
         th = th + np.clip(step, -0.05, 0.05)
-        se = float(np.sqrt(np.linalg.inv(A)[0, 0] * (wgt * r ** 2).sum() / max(wgt.sum() - len(th), 1)))
+        se = _first_standard_error(A, (wgt * r ** 2).sum() / max(wgt.sum() - len(th), 1))
         if np.abs(step).max() < 1e-5:
             break
     return float(th[0]), float(th[1]), se
+
+
+def _first_standard_error(A: np.ndarray, residual_var: float) -> float:
+    """Standard error of the first parameter of a Gauss-Newton fit with normal matrix `A`
+    and residual variance `residual_var`: infinite where `A` is singular, a parameter the
+    data do not constrain (a bare floor has no gradient to warp)."""
+    try:
+        var = np.linalg.inv(A)[0, 0] * residual_var
+    except np.linalg.LinAlgError:
+        return np.inf
+    return float(np.sqrt(var)) if np.isfinite(var) and var > 0 else np.inf
 
 
 def fit_pair(gi, gj, cam_i: Camera, cam_j: Camera, config: FloorScaleConfig) -> PairEstimate | None:

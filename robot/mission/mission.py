@@ -35,8 +35,9 @@ class MissionResult:
     """photos: every photo in order; robot_map: the final map, meshed as the capture's model
     (`map_building.capture_model`); path_m: distance driven (m, odometry); rounds: adaptive
     rounds run; goals: (G, 3) goals reached; given_up: goals abandoned; fixes/failed_fixes:
-    PnP localisations accepted / failed or rejected; stop_reason: why the adaptive stage
-    ended, in words."""
+    PnP localisations accepted / failed or rejected; failure_reasons: the failed ones'
+    count per reason (`adaptive.FIX_FAILURES`); stop_reason: why the adaptive stage ended,
+    in words."""
 
     photos: list[MissionPhoto]
     robot_map: RobotMap | None
@@ -46,6 +47,7 @@ class MissionResult:
     given_up: int = 0
     fixes: int = 0
     failed_fixes: int = 0
+    failure_reasons: dict[str, int] = field(default_factory=dict)
     stop_reason: str = ""
     stopped_because: str = ""
     """complete | budget | no reachable goal (`adaptive_rounds`)."""
@@ -233,6 +235,7 @@ def _resume_adaptive(robot: Robot, state: dict, config: AdaptiveConfig, rng: np.
                               unfixed={int(i) for i in state.get("unfixed", [])},
                               reposed={int(i) for i in state.get("reposed", [])})
     mission.fixes, mission.failed, mission.given_up = state["fixes"], state["failed"], state["given_up"]
+    mission.failure_reasons.update(state.get("failure_reasons", {}))
     mission.failed_at_repose = state.get("failed_at_repose", 0)
     mission.goals_reached = [np.asarray(g, float) for g in state["goals"]]
     mission.given_up_goals = [np.asarray(g, float) for g in state.get("given_up_goals", [])]
@@ -273,6 +276,10 @@ def run_mission(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budge
              f"points (the map's proxy: {len(mission.map.mesh.faces)})")
     result.goals, result.given_up = mission.goals_reached, mission.given_up
     result.fixes, result.failed_fixes = mission.fixes, mission.failed
+    result.failure_reasons = dict(mission.failure_reasons)
+    tried = mission.fixes + mission.failed
+    log.info(f"vision fixes: {mission.fixes} of {tried} photos; failed: "
+             + ", ".join(f"{reason} {n}" for reason, n in mission.failure_reasons.items()))
     if isinstance(mission.body, FilteredBody):
         say_if_lost(result, mission.body.est)
     return result

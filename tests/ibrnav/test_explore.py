@@ -44,5 +44,6 @@ def test_explore_in_an_apartment_reports_rooms_and_why_it_stopped(tmp_path):
     assert report["localization_error_m"] is None and report["map_scale_error"] is None  # no adaptive stage, no map
     assert report["model_photos_error"] is None
     assert report["localised_at_end"] is None  # no filter in a random capture
+    assert report["pnp_fixes"] == report["pnp_failures"] == 0 and report["pnp_failure_reasons"] == {}
     assert report["start_anchored"] is None and report["first_map_scale_error"] is None  # nor a first map
     assert report["coverage"] <= report["achievable_coverage"] <= 1

@@ -156,7 +156,9 @@ def test_a_goal_behind_its_own_bump_is_given_up_past_its_bumps(office, monkeypat
                         else real_drive(d))
     monkeypatch.setattr(m, "config", replace(m.config, look=None))
     est = m.body.est.pose
-    goal = np.array([*(est[:2] + 0.28 * np.array([np.cos(est[2]), np.sin(est[2])])), est[2]])
+    # 0.22 m ahead: 0.07 m beyond the contact (the robot's radius ahead), so the goal's cell
+    # lies within the radius of it wherever the grid's 0.09 m cells fall (half a diagonal: 0.064 m)
+    goal = np.array([*(est[:2] + 0.22 * np.array([np.cos(est[2]), np.sin(est[2])])), est[2]])
     _, _, grid = m.choose_goals()
     try:
         assert not m.go_to(goal, replace(grid, cost=np.zeros_like(grid.cost)))
@@ -338,9 +340,30 @@ def test_a_fix_tilted_out_of_level_is_rejected(office, monkeypatch):
     pitched[:3, 3] = -pitched[:3, :3] @ true.center  # the same camera centre
     for T, accepted in ((true.cam_from_world, True), (pitched, False)):
         monkeypatch.setattr(m.fmap, "localize", lambda image, template, T=T: PnPResult(T, 40, 30, true.with_pose(T)))
-        fixes = m.fixes
+        fixes, tilted = m.fixes, m.failure_reasons["tilt"]
         assert (m.localise_photo(robot.capture()) is not None) == accepted
         assert m.fixes == fixes + accepted
+        assert m.failure_reasons["tilt"] == tilted + (not accepted)
+
+
+def test_a_failed_fix_is_counted_by_its_reason(office, monkeypatch):
+    """No PnP pose, a camera at the wrong height, a pose far from the estimate: each failed
+    fix is counted under its own reason, so a mission's report tells a map that posed
+    nothing from checks that threw poses away."""
+    from localization.feature_localizer import PnPResult
+
+    m, robot, _ = office
+    true = robot_camera(robot.true_pose, robot.intrinsics, robot.image_size, robot.cam_from_robot)
+    raised = true.with_pose(true.cam_from_world @ np.linalg.inv(np.r_[np.c_[np.eye(3), [0, 0, 0.3]], [[0, 0, 0, 1]]]))
+    moved = robot_camera(robot.true_pose + [3.0, 0.0, 0.0], robot.intrinsics, robot.image_size, robot.cam_from_robot)
+    assert abs(raised.center[2] - true.center[2] - 0.3) < 1e-9
+    for res, reason in ((None, "no pose"), (PnPResult(raised.cam_from_world, 40, 30, raised), "height"),
+                        (PnPResult(moved.cam_from_world, 40, 30, moved), "jump")):
+        monkeypatch.setattr(m.fmap, "localize", lambda image, template, res=res: res)
+        before, failed = dict(m.failure_reasons), m.failed
+        assert m.localise_photo(robot.capture()) is None
+        assert m.failed == failed + 1
+        assert m.failure_reasons == {**before, reason: before[reason] + 1}
 
 
 def test_fixed_localise_photos_join_the_localisers_tracks_not_the_map(office):

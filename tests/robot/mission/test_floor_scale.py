@@ -6,7 +6,8 @@ import cv2
 import numpy as np
 
 from ibr.camera import Camera, intrinsics_from_fov
-from robot.mission.floor_scale import FloorScaleConfig, floor_pixels, floor_scale, median_standard_error, sample
+from robot.mission.floor_scale import (FloorScaleConfig, candidate_pairs, floor_pixels, floor_scale, gray, in_image,
+                                      median_standard_error, project_moved, refine, sample)
 from robot.protocol import forward_camera_mount, robot_camera
 
 STOPS = np.array([[0.0, 0.0], [0.8, 0.3], [0.3, 0.9]])
@@ -140,3 +141,18 @@ def test_a_reposed_model_takes_the_floors_scale_not_its_anchors():
                              config)
     assert abs(scale(T) - 1.0) < 0.005 and abs(k * 0.96 - 1.0) < 0.005, (scale(T), k)
     assert err < ReposeConfig().max_anchor_error_m
+
+
+def test_a_bare_floor_leaves_the_scale_unrefined_with_no_error():
+    """Where the floor two photos share has no texture, no pixel constrains the warp's
+    Gauss-Newton refinement: the pair's log k stays where the search put it and its standard
+    error is infinite (it raised numpy's "Singular matrix" in a re-posing of apartment 4's
+    mission, which ended the mission)."""
+    images, cams = _scene(1.0, np.random.default_rng(3))
+    cfg = FloorScaleConfig()
+    i, j, _ = candidate_pairs(cams, cfg)[0]  # the pair that shares the most floor
+    gi, gj = (gray(np.full_like(images[q], 128), cfg.blur_px) for q in (i, j))
+    uv, X = floor_pixels(cams[i], cfg.max_range_h * cams[i].center[2], cfg.stride_px)
+    assert in_image(project_moved(cams[i], cams[j], X, np.array([0.0])), *gj.shape[::-1]).sum() >= cfg.min_pixels
+    log_k, yaw, se = refine(gi, gj, cams[i], cams[j], uv, X, 0.02, cfg)
+    assert (log_k, yaw, se) == (0.02, 0.0, np.inf)

@@ -70,6 +70,8 @@ def test_demo_killed_twice_resumes_to_the_planned_capture(tmp_path):
     assert stages[:36] == ["random"] * 36 and stages[-1] == "finished"
     rounds = [r["state"]["rounds"] for r in log if r["kind"] == "commit" and r["state"]["stage"] == "adaptive"]
     assert rounds == list(range(len(rounds))) and len(rounds) >= 2  # each round once (more when goals are given up)
+    adaptive = [r["state"] for r in log if r["kind"] == "commit" and r["state"]["stage"] == "adaptive"]
+    assert all(sum(s["failure_reasons"].values()) == s["failed"] for s in adaptive)  # by reason, across resumes
     assert len(load_session_scene(folder).views) == len(photos)
     again = demo(folder)
     assert again.returncode == 0 and "already finished" in again.stdout
