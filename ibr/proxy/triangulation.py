@@ -39,10 +39,8 @@ class TriangulationConfig:
     contrast_threshold: float = 0.04
     """SIFT's contrast threshold (OpenCV's `contrastThreshold`, on intensities scaled to
     [0, 1], so it depends on neither the scene's size nor the image's): lower keeps fainter
-    keypoints. 0.04 is OpenCV's default. At 0.02 the capture mission's PnP found 1.3-2.5
-    times the right fixes on faint walls (apartments 1 and 7, offline), but also more wrong
-    ones where its map was wrong, and its 1.5-1.8 times denser map points weaken the
-    navigation grid's max-normalised cost, so the mission keeps 0.04."""
+    keypoints. 0.04 is OpenCV's default; the capture mission's localiser uses 0.02, as faint
+    as COLMAP's SfM detects (`robot.mission.adaptive.AdaptiveConfig.localizer`)."""
 
 
 @dataclass

@@ -432,14 +432,14 @@ def test_a_localise_photo_first_turns_to_the_map(office):
 def test_a_lower_sift_contrast_threshold_localises_on_faint_paint():
     """The office with its textures at a fifth of their contrast (the faint walls a 320 x 240
     photo of a room often shows), the mission's PnP map of 24 photos and 8 photos between
-    them: at OpenCV's default SIFT contrast threshold (0.04, the mission's) none is
-    localised; at 0.02, threaded through both the map's and the query's features, every one
+    them: at OpenCV's default SIFT contrast threshold (0.04) none is localised; at the
+    mission's 0.02, threaded through both the map's and the query's features, every one
     is, within 3 cm."""
     scene = load_scene("synthetic:office?views=48&width=320&height=240")
     faint = replace(scene, views=[replace(v, image=(v.image * 0.2 + 128 * 0.8).astype(np.uint8))
                                   for v in scene.views])
     mission_cfg = AdaptiveConfig().localizer
-    assert mission_cfg.triangulation.contrast_threshold == 0.04
+    assert mission_cfg.triangulation.contrast_threshold == 0.02
     for threshold, expect in ((0.04, False), (0.02, True)):
         cfg = replace(mission_cfg, triangulation=replace(mission_cfg.triangulation, contrast_threshold=threshold))
         fmap = FeatureMap.from_scene(faint, cfg, exclude=[v.name for v in faint.views[1::2]])
