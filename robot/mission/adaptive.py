@@ -164,9 +164,9 @@ class AdaptiveConfig:
     (132-205 at 0.02), PnP found no pose for 710 of apartment 2's 913 adaptive photos and
     886 of apartment 3's 1,186 (the sanity checks rejected 13 and 12), and the photos between
     fixes read the odometry's drift. At 0.02, held out: the fix rate rose on apartments
-    10-14 and offices 5-9, the median localisation error 5.2 -> 2.7 cm (apartments, median
-    of the medians) and 3.9 -> 2.4 cm (offices), the offices' p95 16.2 -> 11.0 cm; where the
-    map itself is displaced (apartment 3) more fixes follow it (p95 36 -> 60 cm)."""
+    10-14 and offices 5-9, the localisation error's median of medians 5.2 -> 2.7 cm
+    (apartments) and 3.4 -> 2.3 cm (offices), the offices' median p95 17.7 -> 12.1 cm; where
+    the map itself is displaced (apartment 3) more fixes follow it (p95 36 -> 60 cm)."""
     map: MapConfig = field(default_factory=MapConfig)
     """Map building (SfM, triangulation, Poisson)."""
     extra_random_circles: int = 2
