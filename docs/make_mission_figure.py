@@ -1,5 +1,5 @@
 """Regenerate docs/mission.png, the README's picture of `ibrnav demo`: the capture mission's
-photo positions on the office floor plan (random stage, adaptive stage, goals), the true
+photo positions on the world's floor plan (random stage, adaptive stage, goals), the true
 path against the robot's estimate, the coverage curve and two of its photos.
 
 Run: ibrnav demo --session CAPTURE --save demo.rrd; python docs/make_mission_figure.py CAPTURE
@@ -23,11 +23,12 @@ records = [json.loads(line) for line in (folder / "log.jsonl").read_text().split
 photos = [r for r in records if r["kind"] == "photo"]
 evals = [r for r in records if r["kind"] == "evaluation"]
 goals = np.concatenate([np.asarray(r["goals"])[:, :2] for r in records if r["kind"] == "goals"] or [np.zeros((0, 2))])
-office = make_world("office", json.loads((folder / "session.json").read_text())["meta"].get("seed", 0))
+meta = json.loads((folder / "session.json").read_text())["meta"]
+world = make_world(meta.get("world", "office"), meta.get("seed", 0))  # the demo's world (an apartment by default)
 
 fig, axes = plt.subplots(1, 4, figsize=(19, 4.4), gridspec_kw={"width_ratios": [1.1, 1.1, 1.3, 1.3]})
 ax = axes[0]
-for poly in getattr(office.free_space, "geoms", [office.free_space]):
+for poly in getattr(world.free_space, "geoms", [world.free_space]):
     for ring in (poly.exterior, *poly.interiors):
         ax.plot(*np.asarray(ring.coords).T, "k-", lw=1)
 for stage, colour, size in (("localise", "0.7", 2), ("random", "tab:orange", 5), ("goal", "tab:blue", 5)):
@@ -41,7 +42,7 @@ ax.set_title("photo positions (robot's estimate, m)")
 ax = axes[1]
 truth = np.array([e["true_pose"][:2] for e in evals])
 est = np.array([e["estimate"][:2] for e in evals])
-for poly in getattr(office.free_space, "geoms", [office.free_space]):
+for poly in getattr(world.free_space, "geoms", [world.free_space]):
     for ring in (poly.exterior, *poly.interiors):
         ax.plot(*np.asarray(ring.coords).T, "k-", lw=1)
 ax.plot(*truth.T, "g-", lw=1, label="true path")
