@@ -279,7 +279,7 @@ def load_synthetic(spec: str | SceneSpec) -> Scene:
     spec = spec if isinstance(spec, SceneSpec) else parse_scene_spec(spec, synthetic_only=True)
     params = spec.params
     world = make_world(spec.world, spec.seed())
-    cams = world.default_cameras(params.get("views", 24), params.get("width", 640),
+    cams = world.default_cameras(params.get("views", world.default_view_count()), params.get("width", 640),
                                  params.get("height", 480))
     views = [View(c, world.photograph(c)) for c in cams]
     return Scene(f"synthetic:{spec.world}", views, mesh=world.mesh, world=world,

@@ -38,7 +38,7 @@ from localization.photo_texture import PhotoTexture
 from localization.pose6_filter import (Pose6Estimate, Pose6Filter, Pose6FilterConfig, PriorBox, cam_from_world_of)
 from localization.render_likelihood import (BatchedLikelihood, LikelihoodConfig, comparison_camera,
                                             likelihood_renderer, truncation)
-from localization.rendered_matches import RenderedMatchConfig, rendered_proposals
+from localization.rendered_matches import RenderedMatchConfig, near_map_views, rendered_proposals
 
 
 @dataclass(frozen=True)
@@ -213,15 +213,18 @@ class RenderResult:
 def proposals(model: RenderModel, image: np.ndarray, camera: Camera, prior: PriorBox | None,
               modes: list[np.ndarray]) -> list[np.ndarray]:
     """The best `proposals` poses (4, 4) from rendered views' features (`rendered_matches`)
-    at the prior (with its turned views) and the filter's best `modes`; without a prior
-    (global localisation) at the modes alone; none with matching off."""
+    at the prior (with its turned views), the filter's best `modes` and the map photos near
+    the prior (`near_map_views`); without a prior (global localisation) at the modes alone;
+    none with matching off."""
     cfg = model.config
     if cfg.matches is None or (prior is None and not modes):
         return []
     centre, spread_rad, modes = ((prior.cam_from_world, prior.spread_rad, modes) if prior is not None
                                  else (modes[0], 0.0, modes[1:]))
+    near = ([] if prior is None else
+            near_map_views(centre, prior.spread_m, spread_rad, model.cameras, cfg.matches.map_views))
     found = rendered_proposals(model.fine.renderer, model.fine.focus, image, camera, centre,
-                               spread_rad, modes, cfg.matches, model.light)
+                               spread_rad, modes, cfg.matches, model.light, near)
     return [T for T, _ in found[:cfg.proposals]]
 
 

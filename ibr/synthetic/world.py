@@ -146,15 +146,35 @@ class SyntheticWorld:
         """(2, 3) axis-aligned bounds of the mesh, metres."""
         return self.mesh.bounds
 
+    def _ring(self) -> tuple[float, np.ndarray]:
+        """An outdoor site's photo ring: its radius (metres, 40 % of the site's size, about the
+        free space's centre) and the point (3,) its photos look at."""
+        centre = np.array(self.free_space.centroid.coords[0])
+        return 0.4 * np.ptp(self.bounds[:, :2], axis=0).max(), np.r_[centre, 0.25 * self.bounds[1, 2]]
+
+    def default_view_count(self) -> int:
+        """Photos of `default_cameras` when a scene names no count: 24 indoors; outdoors as
+        many as the ring needs for no step to turn the view ahead by more than
+        `RING_STEP_DEG` (the courtyard's seeds 0-10: 54-59)."""
+        if self.look_outward:
+            return 24
+        radius, look_at = self._ring()
+        centre = look_at[:2]
+        headings, depth = _ring_depths(self.mesh, centre, radius, look_at, self.view_height_m)
+        return int(np.ceil(_ring_turn(headings, depth, radius)[-1] / np.radians(RING_STEP_DEG)))
+
     def default_cameras(self, n: int, width: int = 640, height: int = 480,
                         fov_deg: float = 60.0) -> list[Camera]:
         """`n` photo cameras at `view_height_m`, with a little seeded jitter: overlapping
         neighbours, as a person walking around with a camera would take them. Indoors
         they stand in the free space looking out from its centre; outdoors they stand on
-        a ring at 40% of the site's half-size looking in at its centre (the courtyard's 24
-        stand 3-6 m apart, some 2-4 m from a building: those see its near face from no
-        other photo within 30 degrees, beyond which SIFT seldom matches;
-        `localization.mapped_share` measures this per view). With several rooms
+        a ring at 40% of the site's size about its centre, looking in at it, in steps
+        that each turn the view of the surface ahead by the same angle (`_ring_headings`:
+        short steps past a near building, long ones across open ground). Evenly spaced,
+        the courtyard's old ring of 24 stood 3-6 m apart, some 2-4 m from a building, and
+        10 of its photos saw the surface at their centre from no other photo within 30
+        degrees, beyond which SIFT seldom matches (`localization.mapped_share` measures
+        this per view); with `default_view_count` photos every one does. With several rooms
         the cameras are shared out over the rooms by floor area, and in each room they
         stand back from its middle and look across it at its walls."""
         rng = np.random.default_rng(self.seed + 1000)
@@ -163,17 +183,22 @@ class SyntheticWorld:
             return self._room_cameras(n, K, width, height, rng)
         centre = np.array(self.free_space.centroid.coords[0])
         inner = self.free_space.buffer(-0.5)
+        if self.look_outward:
+            yaws = 2 * np.pi * np.arange(n) / n
+        else:
+            radius, look_at = self._ring()
+            yaws = _ring_headings(*_ring_depths(self.mesh, centre, radius, look_at, self.view_height_m),
+                                  radius, n)
         cams = []
-        for i in range(n):
-            yaw = 2 * np.pi * i / n + rng.normal(0, 0.05)
+        for i, yaw in enumerate(yaws):
+            yaw = yaw + rng.normal(0, 0.05)
             d = np.array([np.cos(yaw), np.sin(yaw)])
             if self.look_outward:
                 xy = _stand_point(inner, centre, d) + rng.normal(0, 0.05, 2)
                 target = np.r_[xy + 3 * d, self.view_height_m - 0.2]
             else:
-                radius = 0.4 * np.ptp(self.bounds[:, :2], axis=0).max()
                 xy = centre + radius * d + rng.normal(0, 0.05, 2)
-                target = np.r_[centre, 0.25 * self.bounds[1, 2]]
+                target = look_at
             eye = np.r_[xy, self.view_height_m + rng.normal(0, 0.05)]
             cams.append(Camera.look_at(eye, target, K, width, height, name=f"view_{i:03d}"))
         return cams
@@ -218,6 +243,46 @@ class SyntheticWorld:
                 cams.append(Camera.look_at(eye, target, K, width, height,
                                            name=f"view_{len(cams):03d}"))
         return cams
+
+
+RING_STEP_DEG = 15.0
+"""Largest turn (degrees) of the view of the surface ahead between neighbouring photos of an
+outdoor ring: half of the 30 degrees beyond which SIFT seldom matches
+(`localization.mapped_share.MappedShareConfig.max_angle_deg`), so that a point between two
+neighbours is seen by photos on both sides within 30 degrees. A property of the descriptor,
+not of a scene."""
+
+
+def _ring_depths(mesh: trimesh.Trimesh, centre: np.ndarray, radius: float, look_at: np.ndarray,
+                 height: float, samples: int = 720) -> tuple[np.ndarray, np.ndarray]:
+    """(samples,) headings (radians) of places on a ring of `radius` (metres) about `centre`
+    (x, y), and the depth (metres) from each place at `height` along its view to `look_at`
+    (3,): to the first surface of `mesh`, or the ring's diameter where the view meets nothing."""
+    a = 2 * np.pi * np.arange(samples) / samples
+    eyes = np.c_[centre + radius * np.c_[np.cos(a), np.sin(a)], np.full(samples, height)]
+    dirs = look_at - eyes
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    hits, rays, _ = mesh.ray.intersects_location(eyes, dirs, multiple_hits=False)
+    depth = np.full(samples, 2.0 * radius)
+    depth[rays] = np.linalg.norm(hits - eyes[rays], axis=1)
+    return a, depth
+
+
+def _ring_turn(headings: np.ndarray, depth: np.ndarray, radius: float) -> np.ndarray:
+    """(samples + 1,) cumulative turn (radians) of the view of the surface ahead along the
+    ring (`_ring_depths`), from heading 0 to a full circle: each step of length s turns it
+    by s / depth."""
+    step = radius * np.diff(np.r_[headings, 2 * np.pi])
+    return np.concatenate([[0.0], np.cumsum(step / depth)])
+
+
+def _ring_headings(headings: np.ndarray, depth: np.ndarray, radius: float, n: int) -> np.ndarray:
+    """(n,) headings (radians) of `n` photos on the ring (`_ring_depths`), spaced so that every
+    step turns the view of the surface ahead by the same angle: a step's length is
+    proportional to the depth ahead, as a person walks in shorter steps past a near wall.
+    Only ratios of depths enter, no scale of the scene."""
+    turn = _ring_turn(headings, depth, radius)
+    return np.interp((np.arange(n) + 0.5) / n * turn[-1], turn, np.r_[headings, 2 * np.pi])
 
 
 def _long_axis(polygon: shapely.Polygon) -> tuple[np.ndarray, float]:
