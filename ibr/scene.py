@@ -279,8 +279,8 @@ def load_synthetic(spec: str | SceneSpec) -> Scene:
     spec = spec if isinstance(spec, SceneSpec) else parse_scene_spec(spec, synthetic_only=True)
     params = spec.params
     world = make_world(spec.world, spec.seed())
-    cams = world.default_cameras(params.get("views", world.default_view_count()), params.get("width", 640),
-                                 params.get("height", 480))
+    n = params["views"] if "views" in params else world.default_view_count()
+    cams = world.default_cameras(n, params.get("width", 640), params.get("height", 480))
     views = [View(c, world.photograph(c)) for c in cams]
     return Scene(f"synthetic:{spec.world}", views, mesh=world.mesh, world=world,
                  meta={"seed": world.seed})

@@ -174,10 +174,12 @@ def proposals_from_views(renderer, focus, query: Features, cam: Camera, views: l
     """Proposals, most inliers first, of the query features (pixels of `cam`) matched to the
     model rendered at `views` (cam_from_world (4, 4) each, its textures chosen for its eye by
     `focus` when given): one PnP on the matches of all views together and one per view."""
-    uv, xyz = [], []
+    uv, xyz, focused = [], [], None
     for T in views:
-        if focus is not None:
-            focus(np.linalg.inv(T)[:3, 3])
+        eye = np.linalg.inv(T)[:3, 3]
+        if focus is not None and (focused is None or not np.allclose(eye, focused, rtol=0.0, atol=1e-9)):
+            focus(eye)  # the prior and its turned views share one eye: choose its textures once
+            focused = eye
         feats, world = rendered_features(renderer, cam.with_pose(T), config.n_features, config.edge_px, light)
         m = match_ratio(query.descriptors, feats.descriptors, config.ratio)
         uv.append(query.uv[m[:, 0]])

@@ -146,11 +146,13 @@ class SyntheticWorld:
         """(2, 3) axis-aligned bounds of the mesh, metres."""
         return self.mesh.bounds
 
-    def _ring(self) -> tuple[float, np.ndarray]:
-        """An outdoor site's photo ring: its radius (metres, 40 % of the site's size, about the
-        free space's centre) and the point (3,) its photos look at."""
+    def _ring(self) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+        """An outdoor site's photo ring about the free space's centre: its radius (metres, 40 %
+        of the site's size), the point (3,) its photos look at, and `_ring_depths`' headings
+        and depths along it."""
         centre = np.array(self.free_space.centroid.coords[0])
-        return 0.4 * np.ptp(self.bounds[:, :2], axis=0).max(), np.r_[centre, 0.25 * self.bounds[1, 2]]
+        radius, look_at = 0.4 * np.ptp(self.bounds[:, :2], axis=0).max(), np.r_[centre, 0.25 * self.bounds[1, 2]]
+        return (radius, look_at, *_ring_depths(self.mesh, centre, radius, look_at, self.view_height_m))
 
     def default_view_count(self) -> int:
         """Photos of `default_cameras` when a scene names no count: 24 indoors; outdoors as
@@ -158,9 +160,7 @@ class SyntheticWorld:
         `RING_STEP_DEG` (the courtyard's seeds 0-10: 54-59)."""
         if self.look_outward:
             return 24
-        radius, look_at = self._ring()
-        centre = look_at[:2]
-        headings, depth = _ring_depths(self.mesh, centre, radius, look_at, self.view_height_m)
+        radius, _, headings, depth = self._ring()
         return int(np.ceil(_ring_turn(headings, depth, radius)[-1] / np.radians(RING_STEP_DEG)))
 
     def default_cameras(self, n: int, width: int = 640, height: int = 480,
@@ -186,9 +186,8 @@ class SyntheticWorld:
         if self.look_outward:
             yaws = 2 * np.pi * np.arange(n) / n
         else:
-            radius, look_at = self._ring()
-            yaws = _ring_headings(*_ring_depths(self.mesh, centre, radius, look_at, self.view_height_m),
-                                  radius, n)
+            radius, look_at, headings, depth = self._ring()
+            yaws = _ring_headings(headings, depth, radius, n)
         cams = []
         for i, yaw in enumerate(yaws):
             yaw = yaw + rng.normal(0, 0.05)
