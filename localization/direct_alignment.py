@@ -67,18 +67,18 @@ def observed_at(image: np.ndarray, camera: Camera) -> np.ndarray:
     return luminance(image, (camera.width, camera.height))
 
 
-def render_terms(model: MeshRenderer, camera: Camera, light: Light | None, edge_jump: float):
+def render_terms(model: MeshRenderer, camera: Camera, light: Light | None, lik: LikelihoodConfig):
     """Luminance (h, w), depth (h, w) camera-z metres and robust weights (h, w) of the model."""
     g = model.render(camera, light)
     lum = g.color.astype(np.float32) / 255.0 @ LUMA
-    return lum, g.depth, pixel_weights(g.depth, g.trust, edge_jump)
+    return lum, g.depth, pixel_weights(g.depth, g.trust, lik.edge_jump, lik.edge_band)
 
 
 def evaluate_pose(model: MeshRenderer, observed: np.ndarray, camera: Camera, tau: float,
                   lik: LikelihoodConfig = LikelihoodConfig(), light: Light | None = None) -> Alignment:
     """The robust cost, explained share and trusted share of `camera` (pose and size) against
     `observed` luminance at that size."""
-    r, _, w = render_terms(model, camera, light, lik.edge_jump)
+    r, _, w = render_terms(model, camera, light, lik)
     return judge_terms(camera.cam_from_world, r, observed, w, tau, lik)
 
 
@@ -135,7 +135,7 @@ def align_at_width(model: MeshRenderer, image: np.ndarray, camera: Camera, T: np
     tau = truncation(o, lik)
     blurred = cv2.GaussianBlur(o, (0, 0), config.blur_px)
     grad = (cv2.Sobel(blurred, cv2.CV_32F, 1, 0, ksize=3) / 8.0, cv2.Sobel(blurred, cv2.CV_32F, 0, 1, ksize=3) / 8.0)
-    r, depth, w = render_terms(model, camera.with_pose(T), light, lik.edge_jump)
+    r, depth, w = render_terms(model, camera.with_pose(T), light, lik)
     best = judge_terms(T, r, o, w, tau, lik)
     lam = config.damping
     for _ in range(config.iterations):
@@ -148,7 +148,7 @@ def align_at_width(model: MeshRenderer, image: np.ndarray, camera: Camera, T: np
         except np.linalg.LinAlgError:
             break
         T_new = se3_step(xi) @ T
-        r_new, d_new, w_new = render_terms(model, camera.with_pose(T_new), light, lik.edge_jump)
+        r_new, d_new, w_new = render_terms(model, camera.with_pose(T_new), light, lik)
         trial = judge_terms(T_new, r_new, o, w_new, tau, lik)
         if trial.cost <= best.cost:
             T, r, depth, w, best, lam = T_new, r_new, d_new, w_new, trial, lam / 3

@@ -8,8 +8,9 @@ paints a plausible but wrong image. Two tests, both per face:
 - photo-consistency (PMVS, Furukawa & Ponce 2010): a small patch on the face's plane,
   projected into the photo that sees the face best and into every other photo that sees it,
   should look the same in all of them if the face lies on the true surface. Its score is the
-  median zero-mean NCC over the other photos (flat, textureless patches score 0.5: they
-  cannot tell; a face seen by fewer than two photos scores 0: nothing confirms it).
+  median zero-mean NCC over the other photos (a patch flat in both photos scores 0.5: they
+  cannot tell; flat in one and textured in the other, 0: they disagree; a face seen by fewer
+  than two photos scores 0: nothing confirms it).
 - geometric support: the distance from the face to the nearest triangulated point, in
   pixels of the best photo at the work width. A photo-consistency test alone is fooled by
   small baselines and repeated texture; a face far from every point is a guess.
@@ -41,7 +42,7 @@ class TrustConfig:
     """The patch is (2 half_patch + 1)^2 samples, one pixel of the best photo apart."""
     min_std: float = 0.02
     """A patch whose luminance std is below this (intensity units, about sensor noise) is
-    flat: NCC cannot judge it and it scores 0.5."""
+    flat: NCC cannot judge two flat patches (0.5); a flat and a textured one disagree (0)."""
     support_px: tuple[float, float] = (2.0, 8.0)
     """Support is 1 within the first distance (pixels at the work width) of a triangulated
     point and falls linearly to 0 at the second. Measured on proxies of synthetic scenes with
@@ -75,13 +76,16 @@ def sample(lum: np.ndarray, camera: Camera, points: np.ndarray) -> np.ndarray:
 
 
 def patch_agreement(ref: np.ndarray, other: np.ndarray, min_std: float) -> np.ndarray:
-    """(F,) zero-mean NCC of patches (F, S) in two photos; 0.5 where the reference patch is
-    flat (std < min_std), NaN where either patch left its image."""
+    """(F,) zero-mean NCC of patches (F, S) in two photos; 0.5 where both are flat (std <
+    min_std: NCC cannot tell), 0 where only one is (one photo sees texture where the other
+    sees none, e.g. a face bulging past a roofline is sky in one photo and wall in another),
+    NaN where either patch left its image."""
     a = ref - ref.mean(axis=1, keepdims=True)
     b = other - other.mean(axis=1, keepdims=True)
     sa, sb = a.std(axis=1), b.std(axis=1)
     ncc = (a * b).mean(axis=1) / np.maximum(sa * sb, 1e-12)
-    return np.where(sa < min_std, 0.5, np.where(sb < min_std, 0.0, ncc))
+    flat_a, flat_b = sa < min_std, sb < min_std
+    return np.where(flat_a & flat_b, 0.5, np.where(flat_a | flat_b, 0.0, ncc))
 
 
 def photo_consistency(centroids: np.ndarray, normals: np.ndarray, visibility: np.ndarray,

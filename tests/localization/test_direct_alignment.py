@@ -43,7 +43,7 @@ def test_the_jacobian_matches_finite_differences_of_the_photo(office_model):
     cam = comparison_camera(view.camera, 96)
     o = cv2.GaussianBlur(observed_at(view.image, cam), (0, 0), 1.0)
     grad = (cv2.Sobel(o, cv2.CV_32F, 1, 0, ksize=3) / 8, cv2.Sobel(o, cv2.CV_32F, 0, 1, ksize=3) / 8)
-    _, depth, w = render_terms(renderer, cam, light, LikelihoodConfig().edge_jump)
+    _, depth, w = render_terms(renderer, cam, light, LikelihoodConfig())
     v, u = np.nonzero(w > 0)
     z = depth[v, u].astype(float)
     J = photometric_jacobian(cam, grad, u, v, z)

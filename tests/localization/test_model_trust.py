@@ -1,7 +1,7 @@
 """Model trust (`localization.model_trust`) against known answers: the office's true geometry,
 seen by rendered photos and backed by points sampled on the true surface, is trusted; the
 same mesh moved 0.3 m off the surface is not (its patches disagree between photos and no
-point supports it); flat patches cannot be judged; support falls off in pixels."""
+point supports it); flat patches cannot be judged, but flat against textured disagrees; support falls off in pixels."""
 
 import numpy as np
 import pytest
@@ -42,7 +42,10 @@ def test_flat_patches_score_a_half_and_textured_ones_their_ncc():
     rng = np.random.default_rng(0)
     textured = rng.uniform(0, 1, (5, 49))
     flat = np.full((5, 49), 0.4) + rng.normal(scale=0.001, size=(5, 49))
-    np.testing.assert_allclose(patch_agreement(flat, textured, 0.02), 0.5)
+    np.testing.assert_allclose(patch_agreement(flat, flat[::-1] + 0.1, 0.02), 0.5)
+    # texture in one photo and none in the other (sky behind a face, wall in front of it)
+    np.testing.assert_allclose(patch_agreement(flat, textured, 0.02), 0.0)
+    np.testing.assert_allclose(patch_agreement(textured, flat, 0.02), 0.0)
     np.testing.assert_allclose(patch_agreement(textured, 0.5 * textured + 0.2, 0.02), 1.0, atol=1e-6)
     assert (patch_agreement(textured, rng.uniform(0, 1, (5, 49)), 0.02) < 0.5).all()
 

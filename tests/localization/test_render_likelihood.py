@@ -4,7 +4,7 @@ import pytest
 from ibr.camera import intrinsics_from_fov
 from localization.pose_views import se2_views
 from localization.render_likelihood import (BatchedLikelihood, LikelihoodConfig, likelihood_renderer, luminance,
-                                            reference_tile_scores, scores_to_loglik)
+                                            pixel_weights, reference_tile_scores, scores_to_loglik)
 from robot.protocol import forward_camera_mount, robot_camera
 
 TRUE = np.array([-1.5, -2.5, 0.3])
@@ -108,3 +108,20 @@ def test_render_mcl_is_coarse_and_tempered_while_spread(setup, gl_ctx):
         T = lik.config.temperature * (1 + mcl.config.temper_per_m * s)
         expected = scores_to_loglik(lik.view_scores(clip, eyes), lik.config, T)
         np.testing.assert_allclose(pf.log_w - pf.log_w.max(), expected - expected.max(), atol=1e-3)
+
+
+def test_pixel_weights_fall_to_zero_at_occlusion_boundaries_over_the_band():
+    """A near square (2 m) on a far wall (5 m), seen 96 px wide: boundary pixels weigh 0
+    at any band; with a band of 1/12 of the width (8 px) the weight is distance / 8 px
+    from the boundary, 1 beyond; a band under a pixel is the shader's one-pixel rule."""
+    depth = np.full((72, 96), 5.0, np.float32)
+    depth[20:52, 30:66] = 2.0
+    trust = np.ones_like(depth)
+    one_px = pixel_weights(depth, trust, 0.1)
+    assert one_px[20, 40] == 0 and one_px[19, 40] == 0 and one_px[21, 40] == 1 and one_px[36, 48] == 1
+    np.testing.assert_array_equal(pixel_weights(depth, trust, 0.1, band=0.5 / 96), one_px)
+    banded = pixel_weights(depth, trust, 0.1, band=1 / 12)
+    assert banded[20, 40] == 0 and banded[19, 40] == 0
+    np.testing.assert_allclose([banded[24, 45], banded[15, 45]], 0.5)  # 4 px from a boundary pixel
+    assert banded[36, 48] == 1 and banded[5, 5] == 1  # the image border is no boundary
+    assert (banded <= one_px).all()
