@@ -108,6 +108,20 @@ class SonarGrid:
         out[ok] = self.free_mask[i[ok], j[ok]]
         return out
 
+    def surface_distance(self, xy: np.ndarray) -> np.ndarray:
+        """(N,) distance (m) from world points xy (N, 2) to the centre of the nearest
+        occupied cell (`occupied_mask`: a surface the beam met); inf when none is occupied.
+        A point off the grid reads its nearest edge cell (the grid reaches a reading's
+        range of unknown space beyond every reading, so no surface lies off it)."""
+        occupied = self.occupied_mask
+        xy = np.asarray(xy, float).reshape(-1, 2)
+        if not occupied.any():
+            return np.full(len(xy), np.inf)
+        dist = ndimage.distance_transform_edt(~occupied) * self.cell_m
+        i, j = self.cells(xy)
+        H, W = occupied.shape
+        return dist[np.clip(i, 0, H - 1), np.clip(j, 0, W - 1)]
+
     def free_bounds(self) -> np.ndarray | None:
         """(2, 2) [lo, hi] world xy of the free cells' extent (m); None when none is free."""
         i, j = np.nonzero(self.free_mask)

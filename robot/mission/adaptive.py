@@ -469,8 +469,10 @@ class AdaptiveMission:
     def frontier_goals(self, grid) -> np.ndarray:
         """(F, 3) goals at the largest frontiers of the ultrasonic's grid (`explore.frontier`;
         narrower than the robot: none), at most `frontier_goals_per_round`: per frontier,
-        its cell nearest its middle that the robot can reach on `grid` and that lies farther
-        than `goal_separation_m` from every goal given up, facing the unknown space within
+        its cell nearest its middle that the robot can reach on `grid`, that lies farther
+        than `goal_separation_m` from every goal given up and where the robot touches no
+        surface the ultrasonic met (`clear_of_surfaces`; apartments 0-2: frontier goals
+        0.16 m beyond a wall and 0.11-0.17 m from one), facing the unknown space within
         half the ultrasonic's range (`explore.frontier.toward_unknown`). None within
         `goal_separation_m` of a goal reached facing within 60 degrees of the same way (it
         looked there already). A goal given up rules out its own cells, not the frontier:
@@ -490,7 +492,7 @@ class AdaptiveMission:
         mask = reachable_mask(self._from_here(grid), self.body.est.pose[:2], c.max_path_cost)
         out: list[np.ndarray] = []
         for cells in frontiers(self._sonar, 2 * c.robot_radius_m):
-            ok = reachable_at(grid, mask, cells) & ~self.near_given_up(cells)
+            ok = reachable_at(grid, mask, cells) & ~self.near_given_up(cells) & self.clear_of_surfaces(cells)
             if not ok.any():
                 continue
             xy = cells[ok][np.argmin(np.linalg.norm(cells[ok] - cells.mean(0), axis=1))]
@@ -513,7 +515,9 @@ class AdaptiveMission:
 
     def _candidates(self, free, grid) -> np.ndarray:
         """(N, 3) candidate poses in `free` (eroded by `clearance_m`) that the robot can reach
-        on `grid` and that are not within `goal_separation_m` of a given-up goal."""
+        on `grid`, that are not within `goal_separation_m` of a given-up goal, and where it
+        would touch no surface the ultrasonic met (`clear_of_surfaces`: the mesh's free
+        space lacks what SfM found no points on)."""
         c = self.config
         try:
             cand = sample_candidates(free, c.n_candidates, self.rng, c.clearance_m)
@@ -524,7 +528,21 @@ class AdaptiveMission:
         keep = reachable_at(grid, mask, cand[:, :2])
         log.debug(f"goal choice: {len(cand)} candidates in the free space ({free.area:.1f} m2), "
                   f"{int(keep.sum())} reachable ({int(mask.sum())} grid cells)")
-        return cand[keep & ~self.near_given_up(cand[:, :2])]
+        return cand[keep & ~self.near_given_up(cand[:, :2]) & self.clear_of_surfaces(cand[:, :2])]
+
+    def clear_of_surfaces(self, xy: np.ndarray) -> np.ndarray:
+        """(N,) bool: the robot could stand at the points xy (N, 2) without touching a surface
+        the ultrasonic met: its centre lies farther than `robot_radius_m` from every surface,
+        plus half the diagonal of the ultrasonic's cell (`sonar`: a surface lies somewhere
+        in its occupied cell, not at the centre the distance is taken to). All True before
+        the first reading. Both are the robot's own sizes, not a scene's. Of apartments
+        0-2's 20 goals given up, 12 lay within 0.15 m of a true surface or beyond one,
+        where no robot centre fits (given up after five bumps); the ultrasonic's surfaces
+        were 0.11-0.18 m from apartment 2's three such goals."""
+        if self._sonar is None:
+            return np.ones(len(xy), bool)
+        c = self.config.robot_radius_m
+        return self._sonar.surface_distance(xy) > c + np.sqrt(2) / 2 * self._sonar.cell_m
 
     def _sonar_blocked(self, centres: np.ndarray, points: np.ndarray) -> np.ndarray:
         """(K,) bool: the ultrasonic met a surface between each camera centre (K, 3) and

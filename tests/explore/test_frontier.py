@@ -58,6 +58,15 @@ def test_a_doorway_is_a_frontier_facing_out_of_the_room():
     assert toward_unknown(grid, np.zeros(2), 0.5) is None  # the room's middle is all known
 
 
+def test_surface_distance_is_the_way_to_the_nearest_wall_the_beam_met():
+    poses, ranges = readings(room(door=False), (0.0, 0.0))
+    grid = sonar_grid(poses, ranges, 0.075)
+    d = grid.surface_distance(np.array([[0.0, 0.0], [1.2, 0.0], [0.0, -1.4]]))
+    assert abs(d[0] - 1.5) < 0.1 and abs(d[1] - 0.3) < 0.1 and d[2] < 0.15
+    empty = sonar_grid(np.zeros((0, 3)), np.zeros(0), 0.075)
+    assert np.isinf(empty.surface_distance(np.zeros((1, 2)))).all()
+
+
 def test_bad_readings_are_skipped_and_no_reading_gives_an_empty_grid():
     poses, ranges = readings(room(door=False), (0.0, 0.0))
     ranges[3] = np.nan
