@@ -23,6 +23,7 @@ column along x) as `explore.nav_grid.NavGrid`.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy import ndimage
@@ -113,14 +114,20 @@ class SonarGrid:
         occupied cell (`occupied_mask`: a surface the beam met); inf when none is occupied.
         A point off the grid reads its nearest edge cell (the grid reaches a reading's
         range of unknown space beyond every reading, so no surface lies off it)."""
-        occupied = self.occupied_mask
         xy = np.asarray(xy, float).reshape(-1, 2)
-        if not occupied.any():
+        dist = self._surface_distances
+        if dist is None:
             return np.full(len(xy), np.inf)
-        dist = ndimage.distance_transform_edt(~occupied) * self.cell_m
         i, j = self.cells(xy)
-        H, W = occupied.shape
+        H, W = dist.shape
         return dist[np.clip(i, 0, H - 1), np.clip(j, 0, W - 1)]
+
+    @cached_property
+    def _surface_distances(self) -> np.ndarray | None:
+        """(H, W) distance (m) from each cell's centre to the nearest occupied cell's, once
+        per grid (a goal choice asks for it per frontier); None when none is occupied."""
+        occupied = self.occupied_mask
+        return ndimage.distance_transform_edt(~occupied) * self.cell_m if occupied.any() else None
 
     def free_bounds(self) -> np.ndarray | None:
         """(2, 2) [lo, hi] world xy of the free cells' extent (m); None when none is free."""
