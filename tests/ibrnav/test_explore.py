@@ -42,6 +42,7 @@ def test_explore_in_an_apartment_reports_rooms_and_why_it_stopped(tmp_path):
     assert len(report["rooms"]) >= 2 and len(report["rooms_visited"]) == 1  # 4 photos: one circle, one room
     assert set(report["rooms_visited"]) <= set(report["rooms"])
     assert report["localization_error_m"] is None and report["map_scale_error"] is None  # no adaptive stage, no map
+    assert report["localization_error_by_region_m"] is None
     assert report["model_photos_error"] is None
     assert report["localised_at_end"] is None  # no filter in a random capture
     assert report["pnp_fixes"] == report["pnp_failures"] == 0 and report["pnp_failure_reasons"] == {}

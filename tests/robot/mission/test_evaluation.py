@@ -1,9 +1,10 @@
 """`robot.mission.evaluation.localisation_errors`: the estimate at the adaptive stage's
-photos against known true poses, over all of them and over its model (goal) photos."""
+photos against known true poses, over all of them, over its model (goal) photos, and split
+by whether the random stage photographed the region where each was taken."""
 
 import numpy as np
 
-from robot.mission.evaluation import localisation_errors
+from robot.mission.evaluation import localisation_errors, localisation_errors_by_region
 from robot.mission.observer import MissionPhoto
 from robot.protocol import Photo
 
@@ -29,6 +30,31 @@ def test_model_photos_are_reported_apart_from_the_localisation_looks():
     assert np.isclose(model["heading_median_deg"], 1.0)
     assert localisation_errors(photos[:1], truth) is None  # no adaptive photo
     assert localisation_errors(photos[3:5], truth)["model"] is None  # no goal photo
+
+
+class TwoRooms:
+    """A floor plan of two rooms side by side, x < 0 and x > 0, with a threshold at |x| < 0.1 m."""
+
+    @staticmethod
+    def room_at(xy):
+        return None if abs(xy[0]) < 0.1 else ("west" if xy[0] < 0 else "east")
+
+
+def test_photos_in_regions_the_random_stage_never_saw_are_reported_apart():
+    truth = {i: np.array([x, 0.0, 0.0]) for i, x in enumerate([-2.0, -1.0, -1.5, -0.5, 0.0, 1.0, 2.0])}
+    photos = [mission_photo(0, "random", truth[0]), mission_photo(1, "random", truth[1]),
+              mission_photo(2, "goal", [-1.49, 0.0, 0.0]),  # west, where the random stage was: 1 cm
+              mission_photo(3, "localise", [-0.47, 0.0, 0.0]),  # west: 3 cm
+              mission_photo(4, "localise", [0.1, 0.0, 0.0]),  # on the threshold: 10 cm
+              mission_photo(5, "goal", [1.2, 0.0, 0.0]),  # east, first entered now: 20 cm
+              mission_photo(6, "localise", [2.4, 0.0, 0.0])]  # east: 40 cm
+    err = localisation_errors_by_region(TwoRooms(), photos, truth)
+    first, later = err["random_stage_regions"], err["later_regions"]
+    assert first["photos"] == 2 and np.isclose(first["median"], 0.02) and np.isclose(first["max"], 0.03)
+    assert later["photos"] == 3 and np.isclose(later["median"], 0.2) and np.isclose(later["max"], 0.4)
+    only_west = localisation_errors_by_region(TwoRooms(), photos[:4], truth)
+    assert only_west["later_regions"] is None and only_west["random_stage_regions"]["photos"] == 2
+    assert localisation_errors_by_region(TwoRooms(), photos[:2], truth) is None  # no adaptive photo
 
 
 def test_first_map_scale_is_measured_apart_from_photos_joined_later():
