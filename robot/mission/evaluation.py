@@ -40,7 +40,7 @@ def localisation_errors(photos: list[MissionPhoto], truth: dict[int, np.ndarray]
     the stage's photos (841 of 994 on apartment 1) and a failed one reads the odometry's
     drift since the last fix, so the two figures differ. None when the mission has no
     adaptive photo."""
-    adaptive = [p for p in photos if p.stage != "random" and p.photo.index in truth]
+    adaptive = _adaptive_photos(photos, truth)
     if not adaptive:
         return None
     out = _pose_errors(adaptive, truth)
@@ -58,14 +58,20 @@ def localisation_errors_by_region(world, photos: list[MissionPhoto], truth: dict
     8, 11-13, the ultrasonic read along every path) the later regions' photos were localised
     to a pooled median of 9.7 cm (5.5 cm on seeds 11-13) against 2.4 cm (0.9 cm) in the first
     map's. None when the mission has no adaptive photo."""
-    adaptive = [p for p in photos if p.stage != "random" and p.photo.index in truth]
+    adaptive = _adaptive_photos(photos, truth)
     if not adaptive:
         return None
     region = lambda p: world.room_at(truth[p.photo.index][:2])  # noqa: E731
     first = {region(p) for p in photos if p.stage == "random" and p.photo.index in truth} - {None}
-    parts = {"random_stage_regions": [p for p in adaptive if region(p) in first],
-             "later_regions": [p for p in adaptive if region(p) not in first]}
+    in_first = [region(p) in first for p in adaptive]
+    parts = {"random_stage_regions": [p for p, k in zip(adaptive, in_first) if k],
+             "later_regions": [p for p, k in zip(adaptive, in_first) if not k]}
     return {k: _pose_errors(v, truth) if v else None for k, v in parts.items()}
+
+
+def _adaptive_photos(photos: list[MissionPhoto], truth: dict[int, np.ndarray]) -> list[MissionPhoto]:
+    """The adaptive stage's photos (goal and localisation) that have a true pose."""
+    return [p for p in photos if p.stage != "random" and p.photo.index in truth]
 
 
 def _pose_errors(photos: list[MissionPhoto], truth: dict[int, np.ndarray]) -> dict:
