@@ -77,8 +77,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _truth_report(world, robot, result) -> dict:
     """The mission against the simulator's truth (`robot.mission.evaluation`)."""
-    from robot.mission.evaluation import (localisation_errors, localisation_errors_by_region, map_scale_error,
-                                          rooms_visited, true_poses)
+    from robot.mission.evaluation import (facing_distances, localisation_errors, localisation_errors_by_region,
+                                          map_scale_error, rooms_visited, true_poses)
 
     truth = true_poses(robot.truth)
     loc = localisation_errors(result.photos, truth)
@@ -93,7 +93,9 @@ def _truth_report(world, robot, result) -> dict:
             "map_scale_error": map_scale_error(result.robot_map, truth, robot.cam_from_robot, result.photos),
             "first_map_scale_error": None if result.first_map_photos is None else
             map_scale_error(result.robot_map, truth, robot.cam_from_robot, result.photos, result.first_map_photos),
-            "rooms_visited": visited, "rooms": rooms}
+            "rooms_visited": visited, "rooms": rooms,
+            "facing_distance_m": facing_distances(world.mesh, result.model_photos, truth,
+                                                  float(np.linalg.inv(robot.cam_from_robot)[2, 3]))}
 
 
 def _position_error(errors: dict | None) -> dict | None:

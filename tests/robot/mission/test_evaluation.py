@@ -81,3 +81,24 @@ def test_first_map_scale_is_measured_apart_from_photos_joined_later():
     assert map_scale_error(rmap, truth, mount, photos) > 0.01
     assert map_scale_error(rmap, truth, mount, photos, frozenset(range(6))) < 1e-9
     assert map_scale_error(rmap, truth, mount, photos, frozenset(range(2))) is None  # under 3 photos
+
+
+def test_facing_distance_is_the_level_run_to_the_first_true_surface():
+    """Known answers in the office (walls at x = +-3 m and y = +-4 m): from (-1.5, -2.5)
+    facing north the wall is 6.5 m ahead, facing east 4.5 m; a ray from outside the office
+    pointing away meets nothing and is counted as open."""
+    from ibr.synthetic import make_world
+    from robot.mission.evaluation import facing_distances
+
+    world = make_world("office", 0)
+    truth = {0: np.array([-1.5, -2.5, np.pi / 2]), 1: np.array([-1.5, -2.5, 0.0]),
+             2: np.array([-1.5, -2.5, np.pi / 2]), 3: np.array([10.0, 0.0, 0.0])}
+    photos = [mission_photo(0, "random", truth[0]), mission_photo(1, "goal", truth[1]),
+              mission_photo(2, "goal", truth[2]), mission_photo(3, "goal", truth[3]),
+              mission_photo(4, "goal", [0.0, 0.0, 0.0])]  # no true pose: not counted
+    out = facing_distances(world.mesh, photos, truth, 0.4)
+    assert np.isclose(out["random"]["median"], 6.5, atol=1e-3) and out["random"]["photos"] == 1
+    adaptive = out["adaptive"]
+    assert adaptive["photos"] == 3 and adaptive["open"] == 1
+    assert np.isclose(adaptive["p25"], 5.0, atol=1e-3) and np.isclose(adaptive["median"], 5.5, atol=1e-3)
+    assert facing_distances(world.mesh, photos[:1], truth, 0.4)["adaptive"] is None

@@ -288,12 +288,20 @@ def test_sfm_killed_at_its_limit_leaves_the_workspace_to_the_next_call(two_rooms
     pairs = repose_pairs(headings, np.ones(len(images), bool), cfg.match_heading_rad, ReposeConfig().window)
     t0 = time.perf_counter()
     never, _ = sfm_cameras(images, robot.intrinsics, pairs, cfg, tmp_path / "b", limit_s=600.0)
-    limit = 0.6 * (time.perf_counter() - t0)  # killed part way, wherever this machine's speed puts that
-    t0 = time.perf_counter()
-    assert sfm_cameras(images, robot.intrinsics, pairs, cfg, tmp_path / "a", limit_s=limit) is None
-    assert time.perf_counter() - t0 < limit + 10.0
-    cams, support = sfm_cameras(images, robot.intrinsics, pairs, cfg, tmp_path / "a", limit_s=600.0)
-    resumed = _database(tmp_path / "a")
+    whole = time.perf_counter() - t0
+    # killed part way, wherever this machine's speed puts that; on a machine whose load
+    # falls the same work can finish sooner than before (it did, at 0.6, under a sweep of
+    # missions), so a call that finished is tried again in a new workspace with less time
+    for k, part in enumerate((0.6, 0.3, 0.15)):
+        work, limit = tmp_path / f"a{k}", part * whole
+        t0 = time.perf_counter()
+        killed = sfm_cameras(images, robot.intrinsics, pairs, cfg, work, limit_s=limit) is None
+        assert time.perf_counter() - t0 < limit + 10.0
+        if killed:
+            break
+    assert killed
+    cams, support = sfm_cameras(images, robot.intrinsics, pairs, cfg, work, limit_s=600.0)
+    resumed = _database(work)
     assert resumed == _database(tmp_path / "b")
     assert resumed[0] == 1 and len(resumed[1]) == len(images)
     assert set(cams) == set(never) and len(never) >= n / 2
