@@ -29,6 +29,7 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     spec = parse_scene_spec(args.scene, synthetic_only=True, allowed=("seed",))
     world = make_world(spec.world, spec.seed(args.seed))
+    config = mission_config(args)  # a bad flag fails before the robot moves
     if world.name == "office":
         start = np.array([*loop_route(world)[0], START_HEADING])
     else:
@@ -44,13 +45,13 @@ def run(args: argparse.Namespace) -> int:
         result = run_random_only(robot, start, args.photos, rng, obs, random_config(args))
     else:
         result = run_mission(robot, start, min(args.random_photos, args.photos), args.photos,
-                             mission_config(args), rng, obs, random_config(args))
+                             config, rng, obs, random_config(args))
     obs.progress.close()
     seconds = time.perf_counter() - t0
     if args.strategy == "random" and args.eval_poses > 0:  # a model of the random photos, for eval_capture
         from robot.mission.evaluation import model_of_photos
 
-        result.robot_map = model_of_photos(result.photos, robot, mission_config(args).map)
+        result.robot_map = model_of_photos(result.photos, robot, config.map)
     if log:
         recording.rerun_teardown(args)
     report = {"scene": args.scene, "strategy": args.strategy, "seed": args.seed,

@@ -31,6 +31,12 @@ def random_explore(tmp_path, spec: str, photos: int, achievable_poses: int) -> d
     return json.loads(out.read_text())
 
 
+def test_more_far_goals_than_goals_is_one_line_naming_the_flag():
+    run = ibrnav("explore", "synthetic:office", "--far-goals", 7, "--goals-per-round", 6)
+    assert run.returncode == 2
+    assert run.stderr.count("\n") == 1 and "--far-goals 7" in run.stderr and "Traceback" not in run.stderr
+
+
 def test_explore_runs_with_a_seeded_spec(tmp_path):
     report = random_explore(tmp_path, "synthetic:office?seed=3", 3, 0)
     assert report["scene"] == "synthetic:office?seed=3" and report["photos"] == 3

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import shapely
 
-from explore.candidates import sample_candidates
+from explore.candidates import free_space_from_mesh, sample_candidates
 from explore.frontier import frontiers
 from explore.path_simplify import plan_path
 from ibr.scene import load_scene
@@ -224,6 +224,29 @@ def test_a_given_up_goal_is_not_drawn_again(office):
         assert len(again) and d.min() >= m.config.goal_separation_m
     finally:
         m.given_up_goals = []
+
+
+def test_the_far_goal_looks_across_the_room_and_is_not_taken_twice(office):
+    """At the start (1.5 m from the office's south wall), facing north looks 6.4 m across
+    the room, east 4.4 m, south 0.7 m: north is the far goal, then (once reached) east;
+    a goal of the round with the same view rules north out as well. Off by default."""
+    m, _, _ = office
+    xy = np.array([p.camera.center[:2] for p in m.photos if p.camera is not None])
+    free = free_space_from_mesh(m.map.mesh, m.cam_height, xy)
+    north, east, south = (np.r_[START[:2], a] for a in (np.pi / 2, 0.0, -np.pi / 2))
+    cand, none = np.array([south, east, north]), np.zeros((0, 3))
+    assert m.config.far_goals_per_round == 0 and len(m.far_goals(cand, free, none)) == 0
+    plain, reached = m.config, list(m.goals_reached)
+    m.config = replace(plain, far_goals_per_round=1)
+    try:
+        goals, _, _ = m.choose_goals()  # with one far goal among the round's goals
+        assert len(goals) >= 2
+        assert m.far_goals(cand, free, none).tolist() == [north.tolist()]
+        assert m.far_goals(cand, free, north[None] + [0.2, 0.0, 0.3]).tolist() == [east.tolist()]
+        m.goals_reached.append(north)
+        assert m.far_goals(cand, free, none).tolist() == [east.tolist()]
+    finally:
+        m.config, m.goals_reached = plain, reached
 
 
 def test_a_mission_that_can_reach_no_goal_stops(office):
