@@ -73,8 +73,8 @@ def add_mission_args(p: argparse.ArgumentParser, photos_default: int) -> None:
                    help="stop when the best candidate's heuristic score (mean angle, deg) is below this")
     p.add_argument("--far-goals", type=int, default=0,
                    help="of each round's goals, this many look the farthest across open space (the upper walls "
-                   "and ceiling a level camera sees only from afar); off by default: on 16 apartments it raised "
-                   "coverage on 10, but not the held-out median")
+                   "and ceiling a level camera sees only from afar); off by default: one a round raised coverage "
+                   "on 10 of 16 worlds, but not the held-out median")
 
 
 def mission_config(args: argparse.Namespace):
