@@ -557,11 +557,8 @@ class AdaptiveMission:
     def _visited(self, goal: np.ndarray) -> bool:
         """Whether `goal` (3,) lies within `goal_separation_m` of a goal given up, or of one
         reached with a heading within 60 degrees of its own."""
-        sep = self.config.goal_separation_m
-        if self.near_given_up(goal[None, :2])[0]:
-            return True
-        return any(np.hypot(*(goal[:2] - g[:2])) < sep and abs(wrap_angle(goal[2] - g[2])) < np.radians(60)
-                   for g in self.goals_reached)
+        return bool(self.near_given_up(goal[None, :2])[0]
+                    or not _apart(goal, np.reshape(self.goals_reached, (-1, 3)), self.config.goal_separation_m))
 
     def _candidates(self, free, grid) -> np.ndarray:
         """(N, 3) candidate poses in `free` (eroded by `clearance_m`) that the robot can reach
