@@ -79,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
 def _truth_report(world, robot, result) -> dict:
     """The mission against the simulator's truth (`robot.mission.evaluation`)."""
     from robot.mission.evaluation import (facing_distances, localisation_errors, localisation_errors_by_region,
-                                          map_scale_error, rooms_visited, true_poses)
+                                          lost_episodes, map_scale_error, rooms_visited, true_poses)
 
     truth = true_poses(robot.truth)
     loc = localisation_errors(result.photos, truth)
@@ -89,6 +89,7 @@ def _truth_report(world, robot, result) -> dict:
     return {"localization_error_m": _position_error(loc), "heading_error_deg": _heading_error(loc),
             "localization_error_by_region_m": None if by_region is None else
             {k: _position_error(v) for k, v in by_region.items()},
+            "lost_photos": lost_episodes(result.photos, truth),
             "model_photos_error": None if model is None else {"position_m": _position_error(model),
                                                               "heading_deg": _heading_error(model)},
             "map_scale_error": map_scale_error(result.robot_map, truth, robot.cam_from_robot, result.photos),

@@ -102,3 +102,17 @@ def test_facing_distance_is_the_level_run_to_the_first_true_surface():
     assert adaptive["photos"] == 3 and adaptive["open"] == 1
     assert np.isclose(adaptive["p25"], 5.0, atol=1e-3) and np.isclose(adaptive["median"], 5.5, atol=1e-3)
     assert facing_distances(world.mesh, photos[:1], truth, 0.4)["adaptive"] is None
+
+
+def test_photos_taken_lost_are_counted_in_runs():
+    """Photos whose estimate is more than 15 cm off count as lost, and the runs of them in a
+    row are the episodes, the longest reported; the random stage does not count."""
+    from robot.mission.evaluation import lost_episodes
+
+    off = [0.0, 0.2, 0.3, 0.0, 0.16, 0.0, 0.5, 0.5, 0.5, 0.1]  # metres, adaptive photos 1-10
+    truth = {i: np.array([float(i), 0.0, 0.0]) for i in range(11)}
+    photos = [mission_photo(0, "random", [9.0, 0.0, 0.0])]
+    photos += [mission_photo(i + 1, "localise" if i % 2 else "goal", [i + 1.0, d, 0.0]) for i, d in enumerate(off)]
+    assert lost_episodes(photos, truth) == {"photos": 10, "lost": 6, "episodes": 3, "longest": 3}
+    assert lost_episodes(photos, truth, lost_m=1.0) == {"photos": 10, "lost": 0, "episodes": 0, "longest": 0}
+    assert lost_episodes(photos[:1], truth) is None
