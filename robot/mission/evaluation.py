@@ -85,7 +85,7 @@ def lost_episodes(photos: list[MissionPhoto], truth: dict[int, np.ndarray], lost
     adaptive = _adaptive_photos(photos, truth)
     if not adaptive:
         return None
-    lost = np.array([np.hypot(*(p.estimate[:2] - truth[p.photo.index][:2])) > lost_m for p in adaptive])
+    lost = _position_errors(adaptive, truth) > lost_m
     edges = np.diff(np.r_[0, lost.astype(int), 0])
     runs = np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)
     return {"photos": len(lost), "lost": int(lost.sum()), "episodes": len(runs), "longest": int(runs.max(initial=0))}
@@ -96,10 +96,17 @@ def _adaptive_photos(photos: list[MissionPhoto], truth: dict[int, np.ndarray]) -
     return [p for p in photos if p.stage != "random" and p.photo.index in truth]
 
 
+def _position_errors(photos: list[MissionPhoto], truth: dict[int, np.ndarray]) -> np.ndarray:
+    """(N,) distance (m) from each photo's estimate to its true position."""
+    est = np.array([p.estimate for p in photos]).reshape(-1, 3)
+    true = np.array([truth[p.photo.index] for p in photos]).reshape(-1, 3)
+    return np.hypot(*(est[:, :2] - true[:, :2]).T)
+
+
 def _pose_errors(photos: list[MissionPhoto], truth: dict[int, np.ndarray]) -> dict:
     est = np.array([p.estimate for p in photos])
     true = np.array([truth[p.photo.index] for p in photos])
-    d = np.hypot(*(est[:, :2] - true[:, :2]).T)
+    d = _position_errors(photos, truth)
     h = np.degrees(np.abs(wrap_angle(est[:, 2] - true[:, 2])))
     return {"photos": len(d), "median": float(np.median(d)), "p95": float(np.percentile(d, 95)),
             "max": float(d.max()), "heading_median_deg": float(np.median(h)),
