@@ -12,6 +12,13 @@ A query's descriptors are matched with a ratio test whose second neighbour must 
 *different* 3-D point (more than `FeatureLocalizerConfig.same_point_m` away), then pycolmap's
 `estimate_and_refine_absolute_pose` (LO-RANSAC P3P + non-linear refinement) gives the pose.
 
+SIFT is invariant to scale and rotation, not to the affine squash of a surface seen obliquely:
+its matches thin out beyond about 40 degrees of viewpoint change. A query can therefore be
+described at several simulated *tilts* (`tilted_features`, `FeatureLocalizerConfig.query_tilts`):
+ASIFT's idea (Morel & Yu, "ASIFT: a new framework for fully affine invariant image comparison",
+SIAM J. Imaging Sciences 2009) kept to horizontal tilts, the only ones a level camera turning
+about the vertical axis produces on walls and furniture sides.
+
 Frames: world points in metres; pixels (u, v) with centres at integer coordinates, as
 `ibr.camera.Camera` (COLMAP's half-pixel offset cancels: the principal point and the
 keypoints are given to pycolmap in the same convention).
@@ -29,7 +36,7 @@ from scipy.spatial.transform import Rotation
 from ibr.camera import Camera, rigid
 from ibr.scene import Scene
 from ibr.proxy.triangulation import (Features, TriangulationConfig, neighbour_pairs, pair_tracks,
-                               sift_features)
+                                     sift_features)
 
 
 @dataclass(frozen=True)
@@ -57,6 +64,10 @@ class FeatureLocalizerConfig:
     """RANSAC inlier threshold on the reprojection error (pixels of the query image)."""
     min_inliers: int = 15
     """Fewer RANSAC inliers than this: no pose (`localize` returns None)."""
+    query_tilts: tuple[float, ...] = (1.0,)
+    """Horizontal stretch factors the query is described at (`tilted_features`); (1.0,):
+    plain SIFT. A factor t undoes the squash of a surface turned by arccos(1/t) more (t > 1)
+    or less (t < 1) towards the query than towards the map's photos."""
 
 
 @dataclass
@@ -99,6 +110,36 @@ def ransac_pnp(uv: np.ndarray, xyz: np.ndarray, camera: pycolmap.Camera, max_err
     T = rigid(np.eye(3), np.zeros(3))
     T[:3, :] = res["cam_from_world"].matrix()
     return T, res
+
+
+def tilted_features(image: np.ndarray, n_features: int, contrast_threshold: float,
+                    tilts: tuple[float, ...]) -> Features:
+    """SIFT features of `image` ((H, W, 3) uint8 RGB) described at each horizontal tilt of
+    `tilts`: the image resized to round(W t) x H, SIFT there (at most `n_features` each), and
+    the keypoints' u divided by t back to `image`'s pixels; all tilts' features pooled.
+    Morel & Yu's ASIFT simulates tilts t = 1, sqrt 2, 2, ... in all directions on both images;
+    here the direction is horizontal only (a level robot camera turns about the vertical) and
+    t < 1 stands for the map photo's tilt, so only the query is resampled."""
+    feats = []
+    for t in tilts:
+        w = max(1, int(round(image.shape[1] * t)))
+        im = image if w == image.shape[1] else cv2.resize(
+            image, (w, image.shape[0]), interpolation=cv2.INTER_AREA if t < 1 else cv2.INTER_LINEAR)
+        f = sift_features(im, n_features, contrast_threshold)
+        feats.append(Features(f.uv * [image.shape[1] / w, 1.0], f.descriptors, f.colors))
+    return Features(np.vstack([f.uv for f in feats]), np.vstack([f.descriptors for f in feats]),
+                    np.vstack([f.colors for f in feats]))
+
+
+def unique_matches(m: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """The matches (M, 2) (query feature, map point) keeping the first of those sharing a map
+    point, then the first of those whose query keypoints `uv` (Q, 2) round to one pixel: a
+    keypoint described at several tilts, or at two orientations, is one observation, and
+    counted twice it would inflate RANSAC's inliers."""
+    if len(m) == 0:
+        return m
+    m = m[np.sort(np.unique(m[:, 1], return_index=True)[1])]
+    return m[np.sort(np.unique(np.round(uv[m[:, 0]]).astype(int), axis=0, return_index=True)[1])]
 
 
 def triangulated_tracks(cameras: list[Camera], feats: list[Features], cfg: TriangulationConfig
@@ -163,16 +204,25 @@ class FeatureMap:
                 out.append((nbrs[0].queryIdx, best))
         return np.array(out, dtype=int).reshape(-1, 2)
 
-    def localize(self, image: np.ndarray, camera: Camera, refine_focal: bool = False) -> PnPResult | None:
+    def localize(self, image: np.ndarray, camera: Camera, refine_focal: bool = False,
+                 tilts: tuple[float, ...] | None = None) -> PnPResult | None:
         """Pose of the camera that took `image` ((H, W, 3) uint8 RGB), with the intrinsics and
-        size of `camera` (its pose is ignored). None when fewer than `min_inliers` inliers."""
-        feats = sift_features(image, self.config.query_features, self.config.triangulation.contrast_threshold)
-        return self.localize_features(feats, camera, refine_focal)
+        size of `camera` (its pose is ignored), its features described at `tilts` (default
+        `query_tilts`). None when fewer than `min_inliers` inliers."""
+        tilts = tuple(self.config.query_tilts if tilts is None else tilts)
+        contrast = self.config.triangulation.contrast_threshold
+        if tilts == (1.0,):
+            return self.localize_features(sift_features(image, self.config.query_features, contrast), camera,
+                                          refine_focal)
+        feats = tilted_features(image, self.config.query_features, contrast, tilts)
+        return self.localize_features(feats, camera, refine_focal, unique=True)
 
-    def localize_features(self, feats: Features, camera: Camera, refine_focal: bool = False
-                          ) -> PnPResult | None:
-        """`localize` from already extracted query features."""
+    def localize_features(self, feats: Features, camera: Camera, refine_focal: bool = False,
+                          unique: bool = False) -> PnPResult | None:
+        """`localize` from already extracted query features; with `unique`, one match per map
+        point and per query pixel (`unique_matches`: features pooled over tilts)."""
         m = self.match(feats.descriptors)
+        m = unique_matches(m, feats.uv) if unique else m
         if len(m) < max(4, self.config.min_inliers):
             return None
         cfg = self.config

@@ -118,7 +118,7 @@ class SessionJournal(MissionJournal):
         state = {"stage": "adaptive", "rounds": result.rounds, "map_file": name, "photos": len(self.session.photos),
                  "particles": loc.pf.particles, "log_w": loc.pf.log_w, "dead_reckoning": loc.dead_reckoning.pose,
                  "path_m": mission.body.path_m, "fixes": mission.fixes, "failed": mission.failed,
-                 "failure_reasons": dict(mission.failure_reasons),
+                 "failure_reasons": dict(mission.failure_reasons), "tilted_fixes": mission.tilted_fixes,
                  "given_up": mission.given_up, "goals": mission.goals_reached,
                  "given_up_goals": mission.given_up_goals, "bumps": mission.bumps,
                  "unfixed": sorted(mission.unfixed), "failed_at_repose": mission.failed_at_repose,

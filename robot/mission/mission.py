@@ -46,6 +46,8 @@ class MissionResult:
     goals: list = field(default_factory=list)
     given_up: int = 0
     fixes: int = 0
+    tilted_fixes: int = 0
+    """Of `fixes`, those only the tilted retry found (`AdaptiveConfig.retry_tilts`)."""
     failed_fixes: int = 0
     failure_reasons: dict[str, int] = field(default_factory=dict)
     stop_reason: str = ""
@@ -236,6 +238,7 @@ def _resume_adaptive(robot: Robot, state: dict, config: AdaptiveConfig, rng: np.
                               reposed={int(i) for i in state.get("reposed", [])})
     mission.fixes, mission.failed, mission.given_up = state["fixes"], state["failed"], state["given_up"]
     mission.failure_reasons.update(state.get("failure_reasons", {}))
+    mission.tilted_fixes = state.get("tilted_fixes", 0)
     mission.failed_at_repose = state.get("failed_at_repose", 0)
     mission.goals_reached = [np.asarray(g, float) for g in state["goals"]]
     mission.given_up_goals = [np.asarray(g, float) for g in state.get("given_up_goals", [])]
@@ -275,10 +278,11 @@ def run_mission(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budge
     log.info(f"the capture's model: {len(result.robot_map.mesh.faces)} faces over {len(mission.map.points)} map "
              f"points (the map's proxy: {len(mission.map.mesh.faces)})")
     result.goals, result.given_up = mission.goals_reached, mission.given_up
-    result.fixes, result.failed_fixes = mission.fixes, mission.failed
+    result.fixes, result.failed_fixes, result.tilted_fixes = mission.fixes, mission.failed, mission.tilted_fixes
     result.failure_reasons = dict(mission.failure_reasons)
     tried = mission.fixes + mission.failed
-    log.info(f"vision fixes: {mission.fixes} of {tried} photos; failed: "
+    tilted = f" ({mission.tilted_fixes} by the tilted retry)" if mission.config.retry_tilts else ""
+    log.info(f"vision fixes: {mission.fixes} of {tried} photos{tilted}; failed: "
              + ", ".join(f"{reason} {n}" for reason, n in mission.failure_reasons.items()))
     if isinstance(mission.body, FilteredBody):
         say_if_lost(result, mission.body.est)

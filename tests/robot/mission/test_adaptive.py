@@ -385,7 +385,7 @@ def test_a_fix_tilted_out_of_level_is_rejected(office, monkeypatch):
     pitched[:3, :3] = Rotation.from_euler("x", 2.0, degrees=True).as_matrix() @ pitched[:3, :3]
     pitched[:3, 3] = -pitched[:3, :3] @ true.center  # the same camera centre
     for T, accepted in ((true.cam_from_world, True), (pitched, False)):
-        monkeypatch.setattr(m.fmap, "localize", lambda image, template, T=T: PnPResult(T, 40, 30, true.with_pose(T)))
+        monkeypatch.setattr(m.fmap, "localize", lambda image, template, tilts=None, T=T: PnPResult(T, 40, 30, true.with_pose(T)))
         fixes, tilted = m.fixes, m.failure_reasons["tilt"]
         assert (m.localise_photo(robot.capture()) is not None) == accepted
         assert m.fixes == fixes + accepted
@@ -405,11 +405,40 @@ def test_a_failed_fix_is_counted_by_its_reason(office, monkeypatch):
     assert abs(raised.center[2] - true.center[2] - 0.3) < 1e-9
     for res, reason in ((None, "no pose"), (PnPResult(raised.cam_from_world, 40, 30, raised), "height"),
                         (PnPResult(moved.cam_from_world, 40, 30, moved), "jump")):
-        monkeypatch.setattr(m.fmap, "localize", lambda image, template, res=res: res)
+        monkeypatch.setattr(m.fmap, "localize", lambda image, template, tilts=None, res=res: res)
         before, failed = dict(m.failure_reasons), m.failed
         assert m.localise_photo(robot.capture()) is None
         assert m.failed == failed + 1
         assert m.failure_reasons == {**before, reason: before[reason] + 1}
+
+
+def test_a_photo_plain_sift_cannot_fix_is_tried_again_at_simulated_tilts(office, monkeypatch):
+    """PnP with plain SIFT finds no pose; the same photo described at `retry_tilts` is fixed,
+    counted as a fix and as a tilted one. A retry that also fails counts one failure."""
+    from localization.feature_localizer import PnPResult
+
+    from robot.mission.adaptive import ASIFT_TILTS
+
+    m, robot, _ = office
+    true = robot_camera(robot.true_pose, robot.intrinsics, robot.image_size, robot.cam_from_robot)
+    calls = []
+    monkeypatch.setattr(m, "config", replace(m.config, retry_tilts=ASIFT_TILTS))
+
+    def localize(image, template, tilts=None, found=True):
+        calls.append(tuple(tilts))
+        return PnPResult(true.cam_from_world, 40, 30, true) if found and tilts != (1.0,) else None
+
+    monkeypatch.setattr(m.fmap, "localize", localize)
+    fixes, tilted, failed = m.fixes, m.tilted_fixes, m.failed
+    assert m.localise_photo(robot.capture()) is not None
+    assert calls == [(1.0,), ASIFT_TILTS]
+    assert (m.fixes, m.tilted_fixes, m.failed) == (fixes + 1, tilted + 1, failed)
+    monkeypatch.setattr(m.fmap, "localize", lambda image, template, tilts=None: localize(image, template, tilts, False))
+    assert m.localise_photo(robot.capture()) is None
+    assert (m.fixes, m.tilted_fixes, m.failed) == (fixes + 1, tilted + 1, failed + 1)
+    monkeypatch.setattr(m, "config", replace(m.config, retry_tilts=()))  # the default: plain SIFT only
+    calls.clear()
+    assert m.localise_photo(robot.capture()) is None and calls == [(1.0,)]
 
 
 def test_fixed_localise_photos_join_the_localisers_tracks_not_the_map(office):
