@@ -1,5 +1,6 @@
 """Feature localiser (SIFT map triangulated with known poses + RANSAC PnP) on real photos
-with laser-measured cameras."""
+with laser-measured cameras, and its tilted queries (ASIFT-style) on a synthetic wall whose
+photos are exact plane homographies."""
 
 import cv2
 import numpy as np
