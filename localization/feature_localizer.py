@@ -210,12 +210,8 @@ class FeatureMap:
         size of `camera` (its pose is ignored), its features described at `tilts` (default
         `query_tilts`). None when fewer than `min_inliers` inliers."""
         tilts = tuple(self.config.query_tilts if tilts is None else tilts)
-        contrast = self.config.triangulation.contrast_threshold
-        if tilts == (1.0,):
-            return self.localize_features(sift_features(image, self.config.query_features, contrast), camera,
-                                          refine_focal)
-        feats = tilted_features(image, self.config.query_features, contrast, tilts)
-        return self.localize_features(feats, camera, refine_focal, unique=True)
+        feats = tilted_features(image, self.config.query_features, self.config.triangulation.contrast_threshold, tilts)
+        return self.localize_features(feats, camera, refine_focal, unique=tilts != (1.0,))
 
     def localize_features(self, feats: Features, camera: Camera, refine_focal: bool = False,
                           unique: bool = False) -> PnPResult | None:

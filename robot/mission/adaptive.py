@@ -83,9 +83,10 @@ rose on 14 of 16 worlds (mean +5.9 points), the tilted fixes were as close as th
 (apartment 10: median 2.9 cm over 43), goals given up 112 -> 95, worlds with p95 <= 15 cm
 2 -> 4, the mean p95 -3.0 cm, seconds -5 % (two missions at a time; a retry costs about
 0.25 s per failed photo). But the p95 fell on only 8 of 16 worlds, one short of the rule set
-before the sweep (whose code also kept one match per map point in the plain attempt): most of it comes from rooms the first map lacks (apartment 10:
-later regions p95 80 cm against 13.6 cm in the first map's), where no map point is in view
-and no description of the photo helps."""
+before the sweep (whose code also kept one match per map point in the plain attempt): most
+of it comes from rooms the first map lacks (apartment 10: later regions p95 80 cm against
+13.6 cm in the first map's), where no map point is in view and no description of the photo
+helps."""
 
 FIX_FAILURES = ("no pose", "height", "jump", "tilt")
 """Why a photo's fix failed (`AdaptiveMission.localise_photo`): PnP found no pose (too few
