@@ -60,7 +60,7 @@ def open_robot(args: argparse.Namespace, world, start: np.ndarray):
 
 def add_mission_args(p: argparse.ArgumentParser, photos_default: int) -> None:
     """--seed, --photos (the budget), --random-photos, --circle-step-deg, --max-rounds,
-    --goals-per-round, --min-gain-deg, --far-goals, --retry-tilts."""
+    --goals-per-round, --min-gain-deg, --far-goals, --retry-tilts / --no-retry-tilts."""
     p.add_argument("--seed", type=int, default=0, help="world, noise and planner seed")
     p.add_argument("--photos", type=int, default=photos_default, help="photo budget of the model")
     p.add_argument("--random-photos", type=int, default=100, help="photos of the random-exploration stage")
@@ -75,11 +75,9 @@ def add_mission_args(p: argparse.ArgumentParser, photos_default: int) -> None:
                    help="of each round's goals, this many look the farthest across open space (the upper walls "
                    "and ceiling a level camera sees only from afar); off by default: one a round raised coverage "
                    "on 10 of 16 worlds, but not the held-out median")
-    p.add_argument("--retry-tilts", action="store_true",
+    p.add_argument("--retry-tilts", action=argparse.BooleanOptionalAction, default=True,
                    help="a photo plain SIFT cannot localise is described again at simulated tilts (ASIFT-style) "
-                   "and tried once more; off by default: it fixed more photos on 14 of 16 worlds, but lowered "
-                   "the localisation p95 on only 8")
-
+                   "and tried once more (on by default; --no-retry-tilts: plain SIFT only)")
 
 def mission_config(args: argparse.Namespace):
     """The `AdaptiveConfig` of the mission flags."""

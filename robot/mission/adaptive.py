@@ -20,15 +20,16 @@ From the map of the photos so far (`robot.mission.map_building`), each round:
    (SIFT + RANSAC PnP against the map, `localization.feature_localizer`, as a mixture
    proposal, only when level, `max_fix_tilt_px`; a localise photo first turns to the map's
    points, `robot.mission.look_heading`; after a failed fix it looks the way the
-   nearest map photo looked and tries again; goal photos without a fix stay out of the
-   map's tracks), and an extra photo when the filter's spread grows too large: the plan
-   consumes the filter's estimate, never a simulator's truth. On an obstacle it
+   nearest map photo looked and tries again; photos without a fix, or fixed only where the
+   filter was lost, stay out of the map's tracks), and an extra photo when the filter's
+   spread grows too large: the plan consumes the filter's estimate, never a simulator's truth. On an obstacle it
    marks the contact point blocked on the grid (for this goal; dear for every later one),
    backs off, drives a little off the path and re-plans; after `max_obstacles` obstacles it
    gives the goal up and takes the next;
-5. photographs at each goal, localises those photos, and rebuilds the map with them
-   (triangulation with the localised poses fixed, Poisson mesh); the localise photos a fix
-   posed add their tracks to what PnP matches against (`rebuild`).
+5. photographs at each goal and localises those photos; after every goal, the photos a fix
+   posed since (goal and localise photos) add their tracks to what PnP matches against
+   (`grow_tracks`), and after the round the map is rebuilt with the goal photos
+   (triangulation with the localised poses fixed, Poisson mesh, `rebuild`).
 
 Algorithm code only: what happens is reported to a `MissionObserver`
 (`robot.mission.observer`); `robot.mission.mission.run_mission` runs the rounds. Frames: world SE(2) poses (x, y, theta), metres, radians.
@@ -70,8 +71,9 @@ from robot.protocol import Photo, Robot, robot_camera
 log = logging.getLogger(__name__)
 
 ASIFT_TILTS = (0.5, 2**-0.5, 1.0, 2**0.5, 2.0)
-"""The tilts of `AdaptiveConfig.retry_tilts` with `explore --retry-tilts`: ASIFT's steps of
-sqrt 2 up to t = 2 (a surface turned 60 degrees), both ways; SIFT's affine limit, not a scene's.
+"""The tilts of `AdaptiveConfig.retry_tilts` (the default; `explore --no-retry-tilts`: none):
+ASIFT's steps of sqrt 2 up to t = 2 (a surface turned 60 degrees), both ways; SIFT's affine
+limit, not a scene's.
 
 Why (analysis, stop of 2026-11-30): at nodes where both localise photos failed, PnP from the
 *true* pose at 16 headings found a pose within 10 cm for 37 of apartment 6's 320 photos and
@@ -82,11 +84,11 @@ its unmatched walls were seen 45-70 degrees away from the map photos' view. In m
 rose on 14 of 16 worlds (mean +5.9 points), the tilted fixes were as close as the plain ones
 (apartment 10: median 2.9 cm over 43), goals given up 112 -> 95, worlds with p95 <= 15 cm
 2 -> 4, the mean p95 -3.0 cm, seconds -5 % (two missions at a time; a retry costs about
-0.25 s per failed photo). But the p95 fell on only 8 of 16 worlds, one short of the rule set
-before the sweep (whose code also kept one match per map point in the plain attempt): most
-of it comes from rooms the first map lacks (apartment 10: later regions p95 80 cm against
-13.6 cm in the first map's), where no map point is in view and no description of the photo
-helps."""
+0.25 s per failed photo). But alone the p95 fell on only 8 of 16 worlds: most of it came
+from rooms the first map lacks (apartment 10: later regions p95 80 cm against 13.6 cm in the
+first map's), where no map point is in view and no description of the photo helps. With the
+map grown after every goal (`AdaptiveMission.grow_tracks`) from fixes the filter vouches for
+(`take_photo`, `max_fix_jump_m`), it is on by default (stop of 2026-11-30, seventh)."""
 
 FIX_FAILURES = ("no pose", "height", "jump", "tilt")
 """Why a photo's fix failed (`AdaptiveMission.localise_photo`): PnP found no pose (too few
@@ -171,8 +173,14 @@ class AdaptiveConfig:
     grid_seen_margin_m: float = 0.15
     """A grid cell no photo saw through by this margin (m, `ViewQuality.seen_free`) is
     blocked: paths keep to the space the photos saw empty."""
-    max_fix_jump_m: float = 1.0
-    """A PnP fix farther than this from the dead-reckoning estimate is rejected (m)."""
+    max_fix_jump_m: float = 0.15
+    """A PnP fix farther than this (m) and than 3 of the filter's spreads from its estimate is
+    rejected. The issue's 95th-percentile localisation error: a fix the filter cannot tell
+    from its own estimate is never refused, one that jumps past both is not believed. At
+    1.0 m, with the map grown after every goal, apartment 6 took fixes 0.5-1.1 m off where the
+    filter was within 5-34 cm (their inliers on map points 0.2-0.3 m off the surfaces); the
+    filter followed them, and their points drew the next fixes 1 m off for 150 photos (p95
+    118 cm). A robot's accuracy, not a scene's."""
     max_fix_height_err_m: float = 0.15
     """A PnP fix whose camera height is off by more than this is rejected (m)."""
     max_fix_tilt_px: float = 6.0
@@ -203,11 +211,10 @@ class AdaptiveConfig:
     10-14 and offices 5-9, the localisation error's median of medians 5.2 -> 2.7 cm
     (apartments) and 3.4 -> 2.3 cm (offices), the offices' median p95 17.7 -> 12.1 cm; where
     the map itself is displaced (apartment 3) more fixes follow it (p95 36 -> 60 cm)."""
-    retry_tilts: tuple[float, ...] = ()
+    retry_tilts: tuple[float, ...] = ASIFT_TILTS
     """When plain SIFT finds no fix, the photo is described again at these horizontal tilts
-    and pooled (`localization.feature_localizer.tilted_features`; () never; `ASIFT_TILTS`
-    with `explore --retry-tilts`). Off by default: on 16 worlds it raised the fix rate on
-    14 and cut the goals given up 112 -> 95, but the p95 fell on only 8 (`ASIFT_TILTS`)."""
+    and pooled (`localization.feature_localizer.tilted_features`; () never, as with
+    `explore --no-retry-tilts`). Why, and what it gives: `ASIFT_TILTS`."""
     map: MapConfig = field(default_factory=MapConfig)
     """Map building (SfM, triangulation, Poisson)."""
     extra_random_circles: int = 2
@@ -283,7 +290,8 @@ class AdaptiveMission:
         """Where the bumpers touched something (world xy, m, on the estimate): blocked while
         the robot tries the goal it bumped on the way to, dear in every later grid (`_with_bumps`)."""
         self.unfixed: set[int] = set(unfixed or ())
-        """Goal photos PnP could not localise, posed at the filter's estimate: in the model
+        """Goal photos PnP could not localise, or fixed only where the filter was lost
+        (`take_photo`), posed at the filter's estimate: in the model
         (rendering, coverage) but not in the map's tracks, which PnP localises against (an
         estimate 0.2-0.5 m off would triangulate wrong points, and the next fixes would
         follow them)."""
@@ -304,7 +312,9 @@ class AdaptiveMission:
         if looked := set(tracked) - set(mapped):  # a resumed mission: the fixed localise photos' tracks too
             self.tracks = self.tracks + stereo_tracks(tracked, self._feats, config.localizer.triangulation, only=looked)
         self._tracked_to = len(photos)
-        """Photos before this index are in the tracks if they ever will be (`rebuild`)."""
+        """Photos before this index are in the tracks if they ever will be (`grow_tracks`)."""
+        self._mesh_tracks = Tracks.empty()
+        """Tracks of the goal photos fixed since the last `rebuild`, which meshes them."""
         self.fmap = self._feature_map()
 
     # --- localisation -------------------------------------------------------------------
@@ -440,18 +450,23 @@ class AdaptiveMission:
 
     def take_photo(self, stage: str) -> MissionPhoto:
         """Capture, localise by vision: a good fix is the particle filter's measurement (a
-        plain `Body` takes it as its estimate). A goal photo is posed by its fix, or, when
-        PnP failed, at the filter's estimate."""
+        plain `Body` takes it as its estimate). A photo is posed by its fix, and joins the
+        localiser's tracks (`grow_tracks`), only when the filter was localised before it
+        (spread within `relocalise_std_m`): a fix that relocalises a lost filter is believed
+        but seeds no map point, since a wrong one would draw the next fixes to its points (the
+        next fix, checked against the filter it moved, seeds them). A goal photo without
+        such a fix is posed at the filter's estimate (`unfixed`)."""
         photo = self.robot.capture()
         self._last_view = self.robot.odometry().copy()
+        localised = self.spread() <= self.config.filter.relocalise_std_m
         res = self.localise_photo(photo)
         fixed = res is not None
-        cam = res.camera if fixed else None
+        cam = res.camera if fixed and localised else None
         if fixed and isinstance(self.body, FilteredBody):
             self.body.est.update_pnp(self.pose_of_camera(res.cam_from_world), res.n_inliers)
         elif fixed:
             self.body.est.pose = self.pose_of_camera(res.cam_from_world)
-        if not fixed and stage == "goal":
+        if cam is None and stage == "goal":
             cam = robot_camera(self.body.est.pose, self.robot.intrinsics, self.robot.image_size,
                                self.robot.cam_from_robot)
             self.unfixed.add(len(self.photos))
@@ -839,29 +854,42 @@ class AdaptiveMission:
             out.append(self.take_photo("goal"))
         return out
 
-    def rebuild(self, new: list[MissionPhoto]) -> None:
-        """Add the new model photos `new` to the map (their tracks when a fix posed them; the
-        mesh rebuilt), and to the localiser's tracks only, the tracks of the localise photos
-        fixed since the last rebuild: PnP's map grows wherever the robot looked and knew
-        where it was, not only at its goals (apartment 7's first-round map, grown so, gave
-        8 level fixes in the next round's 96 photos instead of 2). Then re-pose by SfM when
-        PnP keeps failing, even in a round that reached no goal (the robot is most lost there)."""
-        started = time.perf_counter()
+    def grow_tracks(self) -> None:
+        """Add to the localiser's tracks the photos a fix posed since the last call: the goal
+        photos (their tracks kept for the model's mesh, `rebuild`) and the localise photos.
+        Called after every goal, so PnP's map follows the robot through a round into a room
+        the map lacked, instead of waiting for the round's end (six goals later). On 16 worlds,
+        with the filter's vouching (`take_photo`) and the tilted retry, the p95 in regions
+        first entered after the random stage fell on 11 of 15 (median 31.8 -> 22.1 cm)."""
         cfg = self.config.localizer.triangulation
-        cams = self._model_cameras()
-        new_ids = {i for i in cams if any(self.photos[i] is q for q in new)}
-        fixed = new_ids - self.unfixed
-        looked = {i for i in range(self._tracked_to, len(self.photos))
-                  if self.photos[i].stage == "localise" and self.photos[i].camera is not None}
+        since = range(self._tracked_to, len(self.photos))
         self._tracked_to = len(self.photos)
-        if new_ids:
-            tracks = stereo_tracks(self._map_cameras(), self._feats, cfg, only=fixed) if fixed else Tracks.empty()
-            self.map = extend_map(self.map, {i: cams[i] for i in new_ids}, tracks, self.config.map)
+        fixed = {i for i in since if self.photos[i].stage != "localise" and self.photos[i].camera is not None
+                 and i not in self.unfixed}
+        looked = {i for i in since if self.photos[i].stage == "localise" and self.photos[i].camera is not None}
+        if fixed:
+            tracks = stereo_tracks(self._map_cameras(), self._feats, cfg, only=fixed)
+            self._mesh_tracks = self._mesh_tracks + tracks
             self.tracks = self.tracks + tracks
         if looked:
             self.tracks = self.tracks + stereo_tracks(self._track_cameras(), self._feats, cfg, only=looked)
-        if new_ids or looked:
+        if fixed or looked:
             self.fmap = self._feature_map()
+
+    def rebuild(self, new: list[MissionPhoto]) -> None:
+        """Add the new model photos `new` to the map (the mesh rebuilt with the tracks of
+        those a fix posed), after `grow_tracks` has added the photos fixed since its last call
+        to the localiser's tracks: PnP's map grows wherever the robot looked and knew where it
+        was, not only at its goals (apartment 7's first-round map, grown so, gave 8 level
+        fixes in the next round's 96 photos instead of 2). Then re-pose by SfM when PnP keeps
+        failing, even in a round that reached no goal (the robot is most lost there)."""
+        started = time.perf_counter()
+        self.grow_tracks()
+        cams = self._model_cameras()
+        new_ids = {i for i in cams if any(self.photos[i] is q for q in new)}
+        if new_ids:
+            self.map = extend_map(self.map, {i: cams[i] for i in new_ids}, self._mesh_tracks, self.config.map)
+        self._mesh_tracks = Tracks.empty()
         r = self.config.repose
         if (r is not None and self.failed - self.failed_at_repose >= r.after_failures
                 and self.spread() > self.config.filter.relocalise_std_m):

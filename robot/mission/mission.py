@@ -351,6 +351,7 @@ def _adaptive_round(mission: AdaptiveMission, result: MissionResult, goals: np.n
             reached = mission.go_to(g, grid)
             if reached:
                 new += mission.capture_at(g, left)
+            mission.grow_tracks()
         if reached:
             mission.goals_reached.append(g)
         else:

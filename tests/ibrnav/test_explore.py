@@ -37,9 +37,9 @@ def test_more_far_goals_than_goals_is_one_line_naming_the_flag():
     assert run.stderr.count("\n") == 1 and "--far-goals 7" in run.stderr and "Traceback" not in run.stderr
 
 
-def test_retry_tilts_is_off_unless_asked_for():
-    """`--retry-tilts` gives the mission ASIFT's tilts for the photos plain SIFT cannot fix;
-    without it the mission localises with plain SIFT alone."""
+def test_retry_tilts_is_on_unless_turned_off():
+    """By default (and with `--retry-tilts`) the mission has ASIFT's tilts for the photos plain
+    SIFT cannot fix; with `--no-retry-tilts` it localises with plain SIFT alone."""
     import argparse
 
     from ibrnav.args import add_mission_args, mission_config
@@ -47,8 +47,9 @@ def test_retry_tilts_is_off_unless_asked_for():
 
     parser = argparse.ArgumentParser()
     add_mission_args(parser, 261)
-    assert mission_config(parser.parse_args([])).retry_tilts == ()
+    assert mission_config(parser.parse_args([])).retry_tilts == ASIFT_TILTS
     assert mission_config(parser.parse_args(["--retry-tilts"])).retry_tilts == ASIFT_TILTS
+    assert mission_config(parser.parse_args(["--no-retry-tilts"])).retry_tilts == ()
 
 
 def test_explore_runs_with_a_seeded_spec(tmp_path):

@@ -412,6 +412,39 @@ def test_a_failed_fix_is_counted_by_its_reason(office, monkeypatch):
         assert m.failure_reasons == {**before, reason: before[reason] + 1}
 
 
+def test_a_fix_that_jumps_past_a_confident_filter_is_refused(office, monkeypatch):
+    """A pose 0.4 m from the estimate is refused while the filter's spread is 5 cm (past both
+    `max_fix_jump_m` and 3 spreads), believed once the filter is lost (a spread of 0.3 m)."""
+    from localization.feature_localizer import PnPResult
+
+    m, robot, _ = office
+    moved = robot_camera(m.body.est.pose + [0.4, 0.0, 0.0], robot.intrinsics, robot.image_size, robot.cam_from_robot)
+    fix = PnPResult(moved.cam_from_world, 40, 30, moved)
+    monkeypatch.setattr(m.fmap, "localize", lambda image, template, tilts=None: fix)
+    for spread, believed in ((0.05, False), (0.3, True)):
+        monkeypatch.setattr(m, "spread", lambda spread=spread: spread)
+        assert (m.localise_photo(robot.capture()) is not None) == believed
+
+
+def test_a_fix_that_relocalises_a_lost_filter_moves_it_but_seeds_no_track(office, monkeypatch):
+    """Lost (spread above `relocalise_std_m`), a fix is the filter's measurement, but its goal
+    photo is posed at the estimate and kept out of the tracks (`unfixed`), and its localise
+    photo gets no pose; localised, the same fix poses both."""
+    from localization.feature_localizer import PnPResult
+
+    m, robot, _ = office
+    here = robot_camera(m.body.est.pose, robot.intrinsics, robot.image_size, robot.cam_from_robot)
+    fix = PnPResult(here.cam_from_world, 40, 30, here)
+    monkeypatch.setattr(m.fmap, "localize", lambda image, template, tilts=None: fix)
+    for spread, seeds in ((m.config.filter.relocalise_std_m + 0.1, False), (0.0, True)):
+        monkeypatch.setattr(m, "spread", lambda spread=spread: spread)
+        fixes, n = m.fixes, len(m.photos)
+        goal, look = m.take_photo("goal"), m.take_photo("localise")
+        assert m.fixes == fixes + 2
+        assert (n in m.unfixed) != seeds and goal.camera is not None
+        assert (look.camera is not None) == seeds
+
+
 def test_a_photo_plain_sift_cannot_fix_is_tried_again_at_simulated_tilts(office, monkeypatch):
     """PnP with plain SIFT finds no pose; the same photo described at `retry_tilts` is fixed,
     counted as a fix and as a tilted one. A retry that also fails counts one failure."""
@@ -436,7 +469,7 @@ def test_a_photo_plain_sift_cannot_fix_is_tried_again_at_simulated_tilts(office,
     monkeypatch.setattr(m.fmap, "localize", lambda image, template, tilts=None: localize(image, template, tilts, False))
     assert m.localise_photo(robot.capture()) is None
     assert (m.fixes, m.tilted_fixes, m.failed) == (fixes + 1, tilted + 1, failed + 1)
-    monkeypatch.setattr(m, "config", replace(m.config, retry_tilts=()))  # the default: plain SIFT only
+    monkeypatch.setattr(m, "config", replace(m.config, retry_tilts=()))  # --no-retry-tilts: plain SIFT only
     calls.clear()
     assert m.localise_photo(robot.capture()) is None and calls == [(1.0,)]
 
@@ -457,6 +490,26 @@ def test_fixed_localise_photos_join_the_localisers_tracks_not_the_map(office):
     n = len(m.tracks.points)
     m.rebuild([])  # nothing new since: nothing added twice
     assert len(m.tracks.points) == n
+
+
+def test_a_fixed_goal_photo_joins_the_tracks_after_its_goal_and_the_map_at_the_rebuild(office):
+    """`grow_tracks` (after every goal) puts the photos fixed since its last call into what
+    PnP matches against; the round's rebuild meshes the goal photos' tracks, adding none twice."""
+    m, robot, _ = office
+    m.rebuild([])
+    n_map, n_tracks = len(m.map.points), len(m.tracks.points)
+    here = m.body.est.pose
+    nearest = min(m._map_cameras().values(), key=lambda c: np.hypot(*(c.center[:2] - here[:2])))
+    f = nearest.world_from_cam[:3, 2]  # a heading a map photo looked along, near where the robot stands
+    shots = m.capture_at(np.r_[here[:2], np.arctan2(f[1], f[0])], budget=2)
+    assert [i for i, p in enumerate(m.photos) if any(p is q for q in shots) and i not in m.unfixed]
+    m.grow_tracks()
+    meshed = len(m._mesh_tracks.points)
+    assert meshed > 0 and len(m.tracks.points) >= n_tracks + meshed and len(m.fmap) == len(m.tracks.points)
+    assert len(m.map.points) == n_map  # the mesh waits for the round's end
+    n = len(m.tracks.points)
+    m.rebuild(shots)
+    assert n_map < len(m.map.points) <= n_map + meshed and len(m.tracks.points) == n  # the mesh drops a few
 
 
 def test_bumps_of_earlier_goals_are_dear_not_walls(office):

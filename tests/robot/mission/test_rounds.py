@@ -24,7 +24,7 @@ class OneGoalPerRound:
         self.photos, self.config, self.map = photos, config, None
         self.goals_reached, self.given_up_goals, self.given_up, self.give_up_reason = [], [], 0, ""
         self.body = SimpleNamespace(est=SimpleNamespace(pose=np.zeros(3)))
-        self.rebuilds = 0
+        self.rebuilds = self.grown = 0
         self.n_candidates, self.n_frontier_goals = 1, 0
 
     def choose_goals(self):
@@ -37,6 +37,9 @@ class OneGoalPerRound:
         new = [MissionPhoto(None, goal, "goal") for _ in range(min(2, budget))]
         self.photos.extend(new)
         return new
+
+    def grow_tracks(self) -> None:
+        self.grown += 1
 
     def rebuild(self, new) -> None:
         self.rebuilds += 1
@@ -70,7 +73,7 @@ def test_rounds_go_on_until_the_budget_unless_capped(max_rounds, rounds, stopped
     mission = OneGoalPerRound(photos, AdaptiveConfig(max_rounds=max_rounds, step_limit_s=None))
     result = MissionResult(photos, None)
     adaptive_rounds(mission, result, photo_budget=50)  # 40 photos to take, 2 per round
-    assert result.rounds == rounds == mission.rebuilds and result.stopped_because == stopped
+    assert result.rounds == rounds == mission.rebuilds == mission.grown and result.stopped_because == stopped
     assert len(result.model_photos) == (50 if max_rounds is None else 10 + 2 * rounds)
 
 
