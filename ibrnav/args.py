@@ -79,6 +79,7 @@ def add_mission_args(p: argparse.ArgumentParser, photos_default: int) -> None:
                    help="a photo plain SIFT cannot localise is described again at simulated tilts (ASIFT-style) "
                    "and tried once more (on by default; --no-retry-tilts: plain SIFT only)")
 
+
 def mission_config(args: argparse.Namespace):
     """The `AdaptiveConfig` of the mission flags."""
     from robot.mission.adaptive import ASIFT_TILTS, AdaptiveConfig

@@ -22,10 +22,10 @@ From the map of the photos so far (`robot.mission.map_building`), each round:
    points, `robot.mission.look_heading`; after a failed fix it looks the way the
    nearest map photo looked and tries again; photos without a fix, or fixed only where the
    filter was lost, stay out of the map's tracks), and an extra photo when the filter's
-   spread grows too large: the plan consumes the filter's estimate, never a simulator's truth. On an obstacle it
-   marks the contact point blocked on the grid (for this goal; dear for every later one),
-   backs off, drives a little off the path and re-plans; after `max_obstacles` obstacles it
-   gives the goal up and takes the next;
+   spread grows too large: the plan consumes the filter's estimate, never a simulator's
+   truth. On an obstacle it marks the contact point blocked on the grid (for this goal;
+   dear for every later one), backs off, drives a little off the path and re-plans; after
+   `max_obstacles` obstacles it gives the goal up and takes the next;
 5. photographs at each goal and localises those photos; after every goal, the photos a fix
    posed since (goal and localise photos) add their tracks to what PnP matches against
    (`grow_tracks`), and after the round the map is rebuilt with the goal photos
@@ -448,6 +448,10 @@ class AdaptiveMission:
         """The filter's position spread (m; 0 without a filter, `MissionLocalizer.spread_m`)."""
         return self.body.est.spread_m if isinstance(self.body, FilteredBody) else 0.0
 
+    def lost(self) -> bool:
+        """The filter's spread is above `MissionFilterConfig.relocalise_std_m` (never without a filter)."""
+        return self.spread() > self.config.filter.relocalise_std_m
+
     def take_photo(self, stage: str) -> MissionPhoto:
         """Capture, localise by vision: a good fix is the particle filter's measurement (a
         plain `Body` takes it as its estimate). A photo is posed by its fix, and joins the
@@ -458,7 +462,7 @@ class AdaptiveMission:
         such a fix is posed at the filter's estimate (`unfixed`)."""
         photo = self.robot.capture()
         self._last_view = self.robot.odometry().copy()
-        localised = self.spread() <= self.config.filter.relocalise_std_m
+        localised = not self.lost()
         res = self.localise_photo(photo)
         fixed = res is not None
         cam = res.camera if fixed and localised else None
@@ -588,7 +592,7 @@ class AdaptiveMission:
         worst seed 1.5 -> 4.3 m, goals given up 30 -> 55 %; with this rule 0.23 m, 1.8 m,
         31 %, and the coverage gain kept in part: median 0.18 -> 0.22, not 0.29)."""
         c = self.config
-        if c.frontier_goals_per_round <= 0 or self._sonar is None or self.spread() > c.filter.relocalise_std_m:
+        if c.frontier_goals_per_round <= 0 or self._sonar is None or self.lost():
             return np.zeros((0, 3))
         mask = reachable_mask(self._from_here(grid), self.body.est.pose[:2], c.max_path_cost)
         out: list[np.ndarray] = []
@@ -891,8 +895,7 @@ class AdaptiveMission:
             self.map = extend_map(self.map, {i: cams[i] for i in new_ids}, self._mesh_tracks, self.config.map)
         self._mesh_tracks = Tracks.empty()
         r = self.config.repose
-        if (r is not None and self.failed - self.failed_at_repose >= r.after_failures
-                and self.spread() > self.config.filter.relocalise_std_m):
+        if r is not None and self.failed - self.failed_at_repose >= r.after_failures and self.lost():
             self.repose(started)
 
     def _odometry_held(self, cams: dict[int, Camera], known: dict[int, Camera]) -> set[int]:
