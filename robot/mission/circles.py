@@ -154,10 +154,12 @@ class _Problem:
     each over its sigma: a model's cameras less the mount, averaged per circle, at the
     circle's centre; its cameras' yaws at the compass; its scale at its floor's (`floors`)
     and the ultrasonic's (`sonars`: scale, relative sigma); the first circle at the known
-    start and each later one an odometry drive from the last."""
+    start and each later one an odometry drive from the last; and the distance between two
+    circles' centres at the floor's measure of it (`spans` {(a, b): (m, relative sigma)},
+    `floor_scale.stop_spans`)."""
 
     def __init__(self, models, keep, circle, heading, dr_xy, driven_m, mount_xy, mount_yaw, config, floors,
-                 sonars=None):
+                 sonars=None, spans=None):
         self.models, self.keep, self.cfg, self.floors, self.sonars = models, keep, config, floors, sonars or {}
         # every circle up to the last a model holds: the dead reckoning chains them from the start
         self.circles = list(range(max(int(circle[i]) for m in keep for i in models[m].idx) + 1))
@@ -168,6 +170,7 @@ class _Problem:
         self.dr_step = np.diff(self.dr, axis=0)
         self.dr_sigma = np.r_[config.odometry_sigma_m, config.odometry_sigma_m
                               + config.odometry_drift * np.diff(np.asarray(driven_m)[first])]
+        self.spans = {ab: v for ab, v in (spans or {}).items() if max(ab) < len(self.circles)}
 
     def unpack(self, x):
         n = 4 * len(self.keep)
@@ -178,6 +181,8 @@ class _Problem:
         # the start is known; each drive between circles is odometry's, `odometry_drift` of it off
         steps = np.vstack([centres[:1] - self.dr[:1], np.diff(centres, axis=0) - self.dr_step])
         out = [steps.ravel() / np.repeat(self.dr_sigma, 2)]
+        for (a, b), (length, sigma) in self.spans.items():
+            out.append(np.atleast_1d((np.linalg.norm(centres[b] - centres[a]) / length - 1.0) / sigma))
         for (log_s, a, tx, ty), m in zip(sim, self.keep):
             mod = self.models[m]
             yaw = a + mod.yaw
@@ -252,12 +257,14 @@ class _Problem:
 
 
 def _scaled(models: list[LevelledModel], keep: list[int], circle: np.ndarray, floors: dict,
-            apart) -> set[int]:
-    """The models whose scale is known: a floor of their own, or two circles shared with
-    models whose scale is known that `apart(k0, k1)` says a drive lies between (two robot
+            apart, spans=()) -> set[int]:
+    """The models whose scale is known: a floor of their own, two circles the floor measured
+    the distance between (`spans`, pairs of circles), or two circles shared with models whose
+    scale is known that `apart(k0, k1)` says a drive lies between (two robot
     positions fix a length only when they are apart: apartment 5's robot came back to
     within 5 cm of its first circle, and that "length" scaled a model 2.5 times too small)."""
-    known = set(floors)
+    held = {m: set(np.unique(circle[models[m].idx]).tolist()) for m in keep}
+    known = set(floors) | {m for m in keep if any(a in held[m] and b in held[m] for a, b in spans)}
     grew = True
     while grew:
         grew = False
@@ -360,14 +367,16 @@ def _floor_fits_sonar(floor: float, sonar: float, sonar_sigma: float, config: Ci
 
 def place_models(models: list[LevelledModel], circle: np.ndarray, heading: np.ndarray, dr_xy: np.ndarray,
                  dr_cam_xy: np.ndarray, driven_m: np.ndarray, mount_xy: np.ndarray, mount_yaw: float,
-                 config: CircleConfig = CircleConfig()) -> Placement:
+                 config: CircleConfig = CircleConfig(), spans: dict | None = None) -> Placement:
     """Every model of `models` (largest first) in the floor frame (see the module's
     docstring). Per photo: `circle` (N,) its circle, `heading` (N,) its camera's compass yaw
     (rad), `dr_xy` (N, 2) the robot's and `dr_cam_xy` (N, 2) the camera's dead-reckoning
     position (m), `driven_m` (N,) the distance driven before it; `mount_xy` (2,) the camera's
-    position on the robot (m) and `mount_yaw` its yaw there (rad). A model whose scale
-    nothing fixes (no floor or ultrasonic scale, fewer than two circles shared with models
-    that have one), or
+    position on the robot (m) and `mount_yaw` its yaw there (rad); `spans` {(a, b): (m,
+    relative sigma)} the floor's measures of the distances between circles' robot positions
+    (`floor_scale.stop_spans`; None: none). A model whose scale nothing fixes (no floor or
+    ultrasonic scale, no span between two of its circles, fewer than two circles shared with
+    models that have one), or
     that misses its circles by over `max_rms_m`, is left out; when no model has a floor,
     the largest is kept with the odometry's scale. A floor that contradicts its model's
     ultrasonic (`_floor_fits_sonar`) is not used. Photos SfM registered wrong are left out
@@ -387,8 +396,10 @@ def place_models(models: list[LevelledModel], circle: np.ndarray, heading: np.nd
         floors = {m: f for m, f in floors.items() if m in keep}
         sonars = {m: f for m, f in sonars.items() if m in keep}
         # keep only the models whose scale is known (the largest's, from odometry, when none is)
-        kept = [m for m in keep if m in _scaled(models, keep, circle, {**floors, **sonars} or {keep[0]: None}, apart)]
-        prob = _Problem(models, kept, circle, heading, dr_xy, driven_m, mount_xy, mount_yaw, config, floors, sonars)
+        known = {**floors, **sonars} or ({} if spans else {keep[0]: None})
+        kept = [m for m in keep if m in _scaled(models, keep, circle, known, apart, spans or {})] or [keep[0]]
+        prob = _Problem(models, kept, circle, heading, dr_xy, driven_m, mount_xy, mount_yaw, config, floors, sonars,
+                        spans)
         x = prob.solve(dr_cam_xy)
         strays = {m: _at_least_3(~out) for m, out in prob.strays(x).items()}
         if not all(ok.all() for ok in strays.values()):

@@ -10,9 +10,13 @@ over log k, then refined jointly with a small turn of photo j about the vertical
 small turn of the baseline's direction: SfM's headings are off by tenths of a degree and its
 photos a few cm sideways, which the floor's parallax alone would take for scale) is the
 pair's estimate of true / map scale. The pairs' estimates are combined by
-their median (`floor_scale`), none when they disagree; pairs need a baseline and a common
-floor (`candidate_pairs`), so a map of one stop gets none. Everything is relative to the
-camera height h (floor range, baselines) and the image (intensities in [0, 1]).
+their median (`floor_scale`: one factor for a whole map), none when they disagree; or per
+two stops (`stop_spans`: the distance between the robot's positions at two of its circles
+of photos, by which the first map is placed with `MapConfig.floor_spans`), since pairs of
+the same two stops share their errors and a map can be off unevenly. Pairs need a
+baseline and a common floor (`candidate_pairs`), so a map of one stop gets none.
+Everything is relative to the camera height h (floor range, baselines) and the image
+(intensities in [0, 1]).
 """
 
 from __future__ import annotations
@@ -69,6 +73,13 @@ class FloorScaleConfig:
     """Gauss-Newton iterations of the refinement."""
     min_pairs: int = 10
     """Fewer pairs that count: no estimate (NaN)."""
+    min_span_pairs: int = 3
+    """`stop_spans`: a span between two stops needs this many pairs of their photos."""
+    min_span_sigma: float = 0.003
+    """`stop_spans`: the least relative noise of a span: the pairs' medians lay within 0.03-0.27 %
+    of their baselines' true ratio (apartments 0, 1, 8, every span between two stops), and
+    pairs of photos of the same two stops share their errors (the stops' floor and layout), so
+    their median's standard error alone would claim more than they know."""
     max_standard_error: float = 0.01
     """No estimate (NaN) either when the median's standard error (`median_standard_error`
     of the pairs' log k) is above this: the pairs disagree, the map's layout is wrong, not
@@ -285,6 +296,41 @@ def floor_scale(images: dict[int, np.ndarray], cameras: dict[int, Camera],
     if len(fits) < config.min_pairs or median_standard_error(log_k) > config.max_standard_error:
         return float("nan"), fits
     return float(np.exp(np.median(log_k))), fits
+
+
+def stop_spans(fits: list[PairEstimate], cameras: dict[int, Camera], stop: dict[int, int],
+               robot_xy: dict[int, np.ndarray], config: FloorScaleConfig = FloorScaleConfig()
+               ) -> dict[tuple[int, int], tuple[float, float]]:
+    """{(a, b): (length m, relative sigma)}: the floor's measure of the horizontal distance
+    between the robot's positions at stops a < b (its circles of photos), from the `fits` of
+    pairs of photos i, j taken at two different stops (`stop` {photo: stop}): photo j's
+    camera moved to C_i + k (C_j - C_i) (the pair's k), less the mount's offset of each
+    camera from its robot position (`robot_xy` {photo: (2,) m} in the map of `cameras`). Per
+    two stops, the median over their pairs; sigma the median's standard error
+    (`median_standard_error` of the logs), at least `min_span_sigma`. Two stops with fewer
+    than `min_span_pairs` pairs, or pairs that disagree (standard error above
+    `max_standard_error`), measure nothing. Unlike one factor for the whole map (the
+    median over every pair), each span says only what its two stops saw: apartment 14's 65
+    pairs were all of one span, 0.6 m of a map 2.3 m across, whose other stops were 4-6 %
+    too close."""
+    lengths: dict[tuple[int, int], list[float]] = {}
+    for f in fits:
+        a, b = stop[f.i], stop[f.j]
+        if a == b:
+            continue
+        ci, cj = cameras[f.i].center[:2], cameras[f.j].center[:2]
+        mount_i, mount_j = ci - robot_xy[f.i], cj - robot_xy[f.j]
+        length = np.linalg.norm(np.exp(f.log_k) * (cj - ci) - (mount_j - mount_i))
+        lengths.setdefault((min(a, b), max(a, b)), []).append(float(np.log(length)))
+    out = {}
+    for span, logs in lengths.items():
+        logs = np.array(logs)
+        if len(logs) < config.min_span_pairs:
+            continue
+        se = median_standard_error(logs)
+        if se <= config.max_standard_error:
+            out[span] = (float(np.exp(np.median(logs))), max(se, config.min_span_sigma))
+    return out
 
 
 def median_standard_error(x: np.ndarray) -> float:

@@ -15,11 +15,15 @@ measures in `complete_circles`' chains), 3.6 degrees at a model's ends, and a mo
 parameterised by the rig): each circle's robot position stays where `circles.place_models`
 put it (that placement holds the map's scale, from the ultrasonic and the floors, and its
 place, from the known start: the images alone hold neither, and a free adjustment drifted
-5 % in scale on apartment 6), but the placement may turn as a whole about the start onto
-the compass (one angle: each model's heading was a compromise of its own SfM yaws, and
-apartment 8's map was 3.3 degrees off); the unknowns are that angle, one robot heading
-per photo, held to its compass reading, and every point; the camera is where the mount
-puts it, at its known height and tilt. Photos of the circles that no model posed (they
+5 % in scale on apartment 6, 17 % on apartment 5), but the placement may turn as a whole
+about the start onto the compass (one angle: each model's heading was a compromise of its
+own SfM yaws, and apartment 8's map was 3.3 degrees off); the unknowns are that angle, one
+robot heading per photo, held to its compass reading, and every point; the camera is where
+the mount puts it, at its known height and tilt. Where the floor measured the lengths
+between stops (`RigObservations.spans`, `floor_scale.stop_spans`), the stops move too, held
+to the placement by a few centimetres and to those lengths: they hold the scale, and the
+photos straighten a model SfM stretched unevenly (apartment 14's first map: 4.5 % off in
+scale, 0.0 % so). Photos of the circles that no model posed (they
 face bare walls) join through their verified matches with posed photos' points, starting
 at their compass reading. The points start triangulated (DLT) from the cameras on the
 rig; reprojection errors are made robust by iteratively reweighted least squares (Huber
@@ -34,7 +38,7 @@ ibrnav's convention (pixel centres at integers).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -71,6 +75,17 @@ class RigAdjustmentConfig:
     min_joining_points: int = 15
     """Fewest points a photo no SfM model posed must see, once adjusted, to join the map
     (COLMAP's `abs_pose_min_num_inliers` is 30 for six unknowns; the rig leaves one)."""
+    stop_sigma_m: float | None = 0.05
+    """When the observations name each photo's stop (`RigObservations.stop`; the map names
+    them only with the floor's spans, which hold the scale), the stops' robot positions are
+    unknowns too, each held to the placement's by this (m; None: held fixed): the placement
+    takes its lengths between stops from SfM's models, whose photos had six free degrees,
+    and a model can be stretched unevenly (apartment 14: one model's 1.8 m from its second
+    to its third stop read 5.6 % shorter, against its 0.6 m from the first to the second,
+    than the truth; the stop 8 cm off). The few centimetres a placement's stop is off."""
+    start_sigma_m: float = 0.005
+    """... and the first stop (`RigObservations.pivot`, the known start) by this (m): the
+    odometry's noise at the start (`CircleConfig.odometry_sigma_m`)."""
 
 
 @dataclass
@@ -96,6 +111,13 @@ class RigObservations:
     joining: np.ndarray
     """(n,) bool: photos no SfM model posed, joining by their matches with posed photos'
     points; their `heading` is their compass reading."""
+    stop: np.ndarray | None = None
+    """(n,) each photo's stop (its circle's number), whose robot position `xy` all its photos
+    share: the stops move in the adjustment (`RigAdjustmentConfig.stop_sigma_m`; None: the
+    positions are held)."""
+    spans: dict = field(default_factory=dict)
+    """{(a, b): (m, relative sigma)} the floor's measures of the distances between stops a
+    and b (`floor_scale.stop_spans`), which hold the adjusted stops' scale."""
 
 
 def turned(xy: np.ndarray, alpha: float, pivot: np.ndarray) -> np.ndarray:
@@ -150,31 +172,68 @@ def _kept(obs: RigObservations, good: np.ndarray) -> RigObservations:
     return replace(obs, photo=obs.photo[good], point=obs.point[good], uv=obs.uv[good])
 
 
-def _sparsity(obs: RigObservations):
-    """Which unknowns (the placement's turn, headings, then points' xyz) each residual (u, v
-    of each observation, then each photo's compass) depends on."""
+class _Stops:
+    """The stops' robot positions as unknowns of `adjust_on_rig` (`RigObservations.stop`):
+    `index` (n,) each photo's stop among the `start` (C, 2) positions (the placement's, m),
+    `sigma` (C,) their priors (m; the first stop's, at the known start, tighter) and the
+    `spans` [(stop a, stop b, length m, relative sigma)] between them."""
+
+    def __init__(self, obs: RigObservations, config: RigAdjustmentConfig):
+        numbers, first, self.index = np.unique(obs.stop, return_index=True, return_inverse=True)
+        self.start = obs.xy[first]
+        at_start = np.linalg.norm(self.start - obs.pivot, axis=1) < 1e-9
+        self.sigma = np.where(at_start, config.start_sigma_m, config.stop_sigma_m)
+        slot = {int(k): c for c, k in enumerate(numbers)}
+        self.spans = [(slot[a], slot[b], length, sigma) for (a, b), (length, sigma) in obs.spans.items()
+                      if a in slot and b in slot]
+
+    def residuals(self, stops: np.ndarray, alpha: float, pivot: np.ndarray) -> np.ndarray:
+        """Each stop at the placement's (turned by `alpha` about `pivot`), and each span's length."""
+        prior = (stops - turned(self.start, alpha, pivot)) / self.sigma[:, None]
+        spans = [(np.linalg.norm(stops[b] - stops[a]) / length - 1.0) / sigma for a, b, length, sigma in self.spans]
+        return np.r_[prior.ravel(), spans]
+
+
+def _sparsity(obs: RigObservations, stops: _Stops | None):
+    """Which unknowns (the placement's turn, headings, the stops' positions when they move,
+    then points' xyz) each residual (u, v of each observation, each photo's compass, then the
+    stops' priors and spans) depends on."""
     n, P, M = len(obs.photos), len(obs.points), len(obs.photo)
-    S = lil_matrix((2 * M + n, 1 + n + 3 * P), dtype=np.uint8)
+    C = 0 if stops is None else len(stops.start)
+    rows = 2 * M + n + (0 if stops is None else 2 * C + len(stops.spans))
+    S = lil_matrix((rows, 1 + n + 2 * C + 3 * P), dtype=np.uint8)
     for r in (2 * np.arange(M), 2 * np.arange(M) + 1):
         S[r, 0] = 1
         S[r, 1 + obs.photo] = 1
         for d in range(3):
-            S[r, 1 + n + 3 * obs.point + d] = 1
+            S[r, 1 + n + 2 * C + 3 * obs.point + d] = 1
+        if stops is not None:
+            for d in range(2):
+                S[r, 1 + n + 2 * stops.index[obs.photo] + d] = 1
     S[2 * M + np.arange(n), 1 + np.arange(n)] = 1
+    if stops is not None:
+        r0 = 2 * M + n
+        for c in range(C):
+            S[r0 + 2 * c:r0 + 2 * c + 2, [0, 1 + n + 2 * c, 1 + n + 2 * c + 1]] = 1
+        for k, (a, b, _, _) in enumerate(stops.spans):
+            S[r0 + 2 * C + k, [1 + n + 2 * a, 1 + n + 2 * a + 1, 1 + n + 2 * b, 1 + n + 2 * b + 1]] = 1
     return S
 
 
 @dataclass
 class RigFit:
     """`adjust_on_rig`'s answer: `alpha` the placement's turn about `RigObservations.pivot`
-    (rad, `turned`), `theta` (n,) the photos' headings (rad), `posed` (n,) which photos it
-    poses (those SfM posed, and the joining ones seen by `min_joining_points` points within
-    four compass sigmas of their compass), `points` (P, 3) m, `kept` (P,) the points seen
-    within `max_error_px` by two photos or more, and the median reprojection error (px) of
-    the kept observations before and after (the points triangulated on the rig)."""
+    (rad, `turned`), `theta` (n,) the photos' headings (rad), `xy` (n, 2) their robot
+    positions (m: the placement's turned by `alpha`, or their stops' adjusted), `posed` (n,)
+    which photos it poses (those SfM posed, and the joining ones seen by
+    `min_joining_points` points within four compass sigmas of their compass), `points`
+    (P, 3) m, `kept` (P,) the points seen within `max_error_px` by two photos or more, and
+    the median reprojection error (px) of the kept observations before and after (the points
+    triangulated on the rig)."""
 
     alpha: float
     theta: np.ndarray
+    xy: np.ndarray
     posed: np.ndarray
     points: np.ndarray
     kept: np.ndarray
@@ -186,26 +245,37 @@ def adjust_on_rig(obs: RigObservations, K: np.ndarray, cam_from_robot: np.ndarra
                   config: RigAdjustmentConfig = RigAdjustmentConfig()) -> RigFit:
     """Refine `obs` on the robot's rig (module docstring). The points start triangulated
     from the photos SfM posed; a point left out of the adjustment is triangulated again from
-    the adjusted cameras; a photo SfM posed and left with no observation keeps SfM's turn."""
+    the adjusted cameras; a photo SfM posed and left with no observation keeps SfM's turn.
+    The stops move too when `obs.stop` names them and `config.stop_sigma_m` is set."""
     n = len(obs.photos)
+    stops = _Stops(obs, config) if obs.stop is not None and config.stop_sigma_m is not None else None
+    C = 0 if stops is None else len(stops.start)
+
+    def positions(x) -> np.ndarray:
+        return turned(obs.xy, x[0], obs.pivot) if stops is None else x[1 + n:1 + n + 2 * C].reshape(-1, 2)[stops.index]
+
     points = triangulate(obs.heading, _kept(obs, ~obs.joining[obs.photo]), K, cam_from_robot)
     start = np.linalg.norm(reprojections(obs.heading, points, obs, K, cam_from_robot) - obs.uv, axis=1)
     fit = _kept(obs, start <= config.max_start_error_px)
-    theta, alpha, S = obs.heading.copy(), 0.0, _sparsity(fit)
+    x = np.r_[0.0, obs.heading, [] if stops is None else stops.start.ravel(), points.ravel()]
+    S = _sparsity(fit, stops)
     for _ in range(config.rounds):
-        err = np.linalg.norm(reprojections(theta, points, replace(fit, xy=turned(fit.xy, alpha, fit.pivot)), K,
-                                           cam_from_robot) - fit.uv, axis=1)
+        err = np.linalg.norm(reprojections(x[1:n + 1], x[1 + n + 2 * C:].reshape(-1, 3),
+                                           replace(fit, xy=positions(x)), K, cam_from_robot) - fit.uv, axis=1)
         w = np.sqrt(np.minimum(1.0, config.huber_px / np.maximum(err, 1e-9)))[:, None]
 
         def residuals(x):
-            at = replace(fit, xy=turned(fit.xy, x[0], fit.pivot))
-            px = (reprojections(x[1:n + 1], x[n + 1:].reshape(-1, 3), at, K, cam_from_robot) - fit.uv) * w
-            return np.r_[px.ravel(), np.angle(np.exp(1j * (x[1:n + 1] - fit.compass))) / config.compass_sigma_rad]
+            at = replace(fit, xy=positions(x))
+            px = (reprojections(x[1:n + 1], x[1 + n + 2 * C:].reshape(-1, 3), at, K, cam_from_robot) - fit.uv) * w
+            out = [px.ravel(), np.angle(np.exp(1j * (x[1:n + 1] - fit.compass))) / config.compass_sigma_rad]
+            if stops is not None:
+                out.append(stops.residuals(x[1 + n:1 + n + 2 * C].reshape(-1, 2), x[0], obs.pivot))
+            return np.concatenate(out)
 
-        x = least_squares(residuals, np.r_[alpha, theta, points.ravel()], jac_sparsity=S, method="trf",
-                          x_scale="jac", max_nfev=config.max_evaluations).x
-        alpha, theta, points = float(x[0]), x[1:n + 1], x[n + 1:].reshape(-1, 3)
-    obs = replace(obs, xy=turned(obs.xy, alpha, obs.pivot))
+        x = least_squares(residuals, x, jac_sparsity=S, method="trf", x_scale="jac",
+                          max_nfev=config.max_evaluations).x
+    alpha, theta, points = float(x[0]), x[1:n + 1], x[1 + n + 2 * C:].reshape(-1, 3)
+    obs = replace(obs, xy=positions(x))
     unseen = np.bincount(fit.photo, minlength=n) == 0  # only its compass held it: SfM's turn is better
     theta[unseen] = obs.heading[unseen] + alpha
     loose = np.bincount(fit.point, minlength=len(points)) == 0  # left out at the start: triangulated again
@@ -217,7 +287,8 @@ def adjust_on_rig(obs: RigObservations, K: np.ndarray, cam_from_robot: np.ndarra
     seen = np.bincount(obs.photo[inliers], minlength=n)
     agrees = np.abs(np.angle(np.exp(1j * (theta - obs.compass)))) <= 4 * config.compass_sigma_rad
     posed = ~obs.joining | ((seen >= config.min_joining_points) & agrees)
+
     def median(e):
         return float(np.median(e)) if e.size else float("nan")
 
-    return RigFit(alpha, theta, posed, points, kept, median(start[inliers]), median(after[inliers]))
+    return RigFit(alpha, theta, obs.xy, posed, points, kept, median(start[inliers]), median(after[inliers]))

@@ -72,3 +72,17 @@ def test_explore_in_an_apartment_reports_rooms_and_why_it_stopped(tmp_path):
     assert report["pnp_fixes"] == report["pnp_failures"] == 0 and report["pnp_failure_reasons"] == {}
     assert report["start_anchored"] is None and report["first_map_scale_error"] is None  # nor a first map
     assert report["coverage"] <= report["achievable_coverage"] <= 1
+
+
+def test_floor_spans_are_off_unless_asked_for():
+    """By default the first map keeps one floor factor (`MapConfig()` as it was); with
+    `--floor-spans` it is placed by the floor's distances between its stops."""
+    import argparse
+
+    from ibrnav.args import add_mission_args, mission_config
+    from robot.mission.map_building import MapConfig
+
+    parser = argparse.ArgumentParser()
+    add_mission_args(parser, 261)
+    assert mission_config(parser.parse_args([])).map == MapConfig() and not MapConfig().floor_spans
+    assert mission_config(parser.parse_args(["--floor-spans"])).map.floor_spans

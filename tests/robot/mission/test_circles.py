@@ -249,3 +249,25 @@ def test_a_floor_few_points_hold_weighs_less_than_the_ultrasonic():
     dr_xy, dr_cam, driven = _odometry(circle, heading, CENTRES)
     placed = place_models([model], circle, heading, dr_xy, dr_cam, driven, MOUNT_XY, MOUNT_YAW)
     assert abs(placed.models[0][0] / s - 1) < 0.015, placed.models[0][0] / s
+
+
+def test_a_floor_span_between_two_circles_scales_the_models_that_hold_them():
+    """A model whose floor reads 4 % low and whose ultrasonic reads 2 % low (apartment 14's
+    model of three stops) is placed at the floor's span between its first two circles (0.3 %),
+    not between its wrong scales."""
+    from dataclasses import replace
+
+    rng = np.random.default_rng(9)
+    circle, cam, yaw = _circles(rng)
+    s, a, t = 0.25, 0.4, np.array([0.3, -0.2])
+    model = replace(_model(np.arange(108), cam, yaw, s, a, t, rng, floor=s * 0.96), sonar_scale=s * 0.98,
+                    sonar_sigma=0.02)
+    heading = yaw + rng.normal(0, np.radians(2), len(yaw))
+    dr_xy, dr_cam, driven = _odometry(circle, heading, CENTRES, stretch=0.88)
+    alone = place_models([model], circle, heading, dr_xy, dr_cam, driven, MOUNT_XY, MOUNT_YAW)
+    assert abs(alone.models[0][0] / s - 1) > 0.02
+    span = {(0, 1): (float(np.linalg.norm(CENTRES[1] - CENTRES[0])), 0.003)}
+    placed = place_models([model], circle, heading, dr_xy, dr_cam, driven, MOUNT_XY, MOUNT_YAW, spans=span)
+    assert abs(placed.models[0][0] / s - 1) < 0.005, placed.models[0][0] / s
+    for k, c in placed.centres.items():
+        assert np.linalg.norm(c - CENTRES[k]) < 0.02, (k, c)

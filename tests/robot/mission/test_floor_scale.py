@@ -7,7 +7,8 @@ import numpy as np
 
 from ibr.camera import Camera, intrinsics_from_fov
 from robot.mission.floor_scale import (FloorScaleConfig, candidate_pairs, floor_pixels, floor_scale, gray, in_image,
-                                      median_standard_error, project_moved, refine, sample)
+                                      median_standard_error, project_moved, refine, sample, stop_spans)
+from robot.mission.map_building import robot_pose
 from robot.protocol import forward_camera_mount, robot_camera
 
 STOPS = np.array([[0.0, 0.0], [0.8, 0.3], [0.3, 0.9]])
@@ -108,6 +109,20 @@ def test_no_scale_from_pairs_that_disagree():
     k, fits = floor_scale(images, cams)
     assert len(fits) >= FloorScaleConfig().min_pairs and np.isnan(k), (k, len(fits))
     assert median_standard_error(np.array([f.log_k for f in fits])) > FloorScaleConfig().max_standard_error
+
+
+def test_stop_spans_measure_each_two_stops_of_a_wrong_layout():
+    """The wrong layout above (stops 1 and 2 mapped 4 % short and 20 % long): no one factor
+    fits it, but each two stops' pairs agree on the true distance between them."""
+    images, cams = _scene(1.0, np.random.default_rng(3), stop_scales=(1.0, 0.96, 1.2))
+    _, fits = floor_scale(images, cams)
+    mount = forward_camera_mount(HEIGHT, 0.05)
+    robot_xy = {i: robot_pose(c.world_from_cam, mount)[:2] for i, c in cams.items()}
+    spans = stop_spans(fits, cams, {i: i // 3 for i in cams}, robot_xy)
+    assert len(spans) >= 2, spans
+    for (a, b), (length, sigma) in spans.items():
+        assert abs(length / np.linalg.norm(STOPS[b] - STOPS[a]) - 1) < 0.005, (a, b, length)
+        assert FloorScaleConfig().min_span_sigma <= sigma <= FloorScaleConfig().max_standard_error
 
 
 def test_the_standard_error_of_a_median_of_normal_samples():

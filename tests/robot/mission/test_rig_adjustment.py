@@ -93,3 +93,39 @@ def test_a_photo_sfm_left_out_joins_by_its_matches_at_its_true_heading():
     fit = adjust_on_rig(obs, K, cam_from_robot)
     assert fit.posed[[5, 50]].all() and not fit.posed[90]
     assert _yaw_errors_deg(fit.theta[[5, 50]], truth[[5, 50]]).max() < 0.2
+
+
+def test_a_stop_the_placement_put_off_comes_back_by_the_photos():
+    """The placement put the third stop 8 cm short along its drive from the second (apartment
+    14: a model stretched unevenly, that stop 8 cm off). With the stops free the photos'
+    points bring it back, while the first stop (the known start) holds the map in place."""
+    rng = np.random.default_rng(7)
+    truth, K, cam_from_robot, obs = _room_observations(rng, over_turn=0.0)
+    circle = np.repeat(np.arange(3), 36)
+    drive = (CENTRES[2] - CENTRES[1]) / np.linalg.norm(CENTRES[2] - CENTRES[1])
+    placed = CENTRES - np.array([[0.0, 0.0], [0.0, 0.0], 0.08 * drive])
+    obs = replace(obs, xy=placed[circle], stop=circle)
+    fit = adjust_on_rig(obs, K, cam_from_robot)
+    assert np.abs(fit.xy - CENTRES[circle]).max() < 0.015, fit.xy[::36]
+    held = adjust_on_rig(replace(obs, stop=None), K, cam_from_robot)
+    assert np.linalg.norm(held.xy[72] - CENTRES[2]) > 0.05  # held, the stop stays where it was put
+
+
+def test_a_floor_span_holds_the_stops_scale():
+    """A placement 4 % too large, its points with it. On the rig the photos hold a scale of
+    their own (the mount's 5 cm swing within each circle, the camera's known height): here,
+    with 0.3 px of noise and 1,200 points, they bring the stops back. A floor span between
+    the first two stops (0.3 %) outweighs them: the stops end near the span's length, here
+    3 % longer than the truth to tell the two apart."""
+    rng = np.random.default_rng(8)
+    truth, K, cam_from_robot, obs = _room_observations(rng, over_turn=0.0)
+    circle = np.repeat(np.arange(3), 36)
+    big = CENTRES[0] + 1.04 * (CENTRES - CENTRES[0])
+    points = obs.points.copy()
+    points[:, :2] = CENTRES[0] + 1.04 * (points[:, :2] - CENTRES[0])
+    obs = replace(obs, xy=big[circle], stop=circle, points=points)
+    images_alone = adjust_on_rig(obs, K, cam_from_robot)
+    assert np.abs(images_alone.xy - CENTRES[circle]).max() < 0.015, images_alone.xy[::36]
+    length = 1.03 * float(np.linalg.norm(CENTRES[1] - CENTRES[0]))
+    fit = adjust_on_rig(replace(obs, spans={(0, 1): (length, 0.003)}), K, cam_from_robot)
+    assert abs(np.linalg.norm(fit.xy[36] - fit.xy[0]) / length - 1) < 0.01
