@@ -23,7 +23,7 @@ the mount puts it, at its known height and tilt. Where the floor measured the le
 between stops (`RigObservations.spans`, `floor_scale.stop_spans`), the stops move too, held
 to the placement by a few centimetres and to those lengths: they hold the scale, and the
 photos straighten a model SfM stretched unevenly (apartment 14's first map: 4.5 % off in
-scale, 0.0 % so). Photos of the circles that no model posed (they
+scale, 0.02 % so; `MapConfig.floor_spans`). Photos of the circles that no model posed (they
 face bare walls) join through their verified matches with posed photos' points, starting
 at their compass reading. The points start triangulated (DLT) from the cameras on the
 rig; reprojection errors are made robust by iteratively reweighted least squares (Huber
