@@ -251,8 +251,13 @@ def adjust_on_rig(obs: RigObservations, K: np.ndarray, cam_from_robot: np.ndarra
     stops = _Stops(obs, config) if obs.stop is not None and config.stop_sigma_m is not None else None
     C = 0 if stops is None else len(stops.start)
 
+    def unpack(x):
+        """(turn, headings (n,), stops (C, 2), points (P, 3)): views of the unknowns `x`."""
+        return x[0], x[1:n + 1], x[1 + n:1 + n + 2 * C].reshape(-1, 2), x[1 + n + 2 * C:].reshape(-1, 3)
+
     def positions(x) -> np.ndarray:
-        return turned(obs.xy, x[0], obs.pivot) if stops is None else x[1 + n:1 + n + 2 * C].reshape(-1, 2)[stops.index]
+        alpha, _, stop_xy, _ = unpack(x)
+        return turned(obs.xy, alpha, obs.pivot) if stops is None else stop_xy[stops.index]
 
     points = triangulate(obs.heading, _kept(obs, ~obs.joining[obs.photo]), K, cam_from_robot)
     start = np.linalg.norm(reprojections(obs.heading, points, obs, K, cam_from_robot) - obs.uv, axis=1)
@@ -260,21 +265,23 @@ def adjust_on_rig(obs: RigObservations, K: np.ndarray, cam_from_robot: np.ndarra
     x = np.r_[0.0, obs.heading, [] if stops is None else stops.start.ravel(), points.ravel()]
     S = _sparsity(fit, stops)
     for _ in range(config.rounds):
-        err = np.linalg.norm(reprojections(x[1:n + 1], x[1 + n + 2 * C:].reshape(-1, 3),
-                                           replace(fit, xy=positions(x)), K, cam_from_robot) - fit.uv, axis=1)
+        _, theta, _, points = unpack(x)
+        err = np.linalg.norm(reprojections(theta, points, replace(fit, xy=positions(x)), K, cam_from_robot) - fit.uv,
+                             axis=1)
         w = np.sqrt(np.minimum(1.0, config.huber_px / np.maximum(err, 1e-9)))[:, None]
 
         def residuals(x):
-            at = replace(fit, xy=positions(x))
-            px = (reprojections(x[1:n + 1], x[1 + n + 2 * C:].reshape(-1, 3), at, K, cam_from_robot) - fit.uv) * w
-            out = [px.ravel(), np.angle(np.exp(1j * (x[1:n + 1] - fit.compass))) / config.compass_sigma_rad]
+            alpha, theta, stop_xy, points = unpack(x)
+            px = (reprojections(theta, points, replace(fit, xy=positions(x)), K, cam_from_robot) - fit.uv) * w
+            out = [px.ravel(), np.angle(np.exp(1j * (theta - fit.compass))) / config.compass_sigma_rad]
             if stops is not None:
-                out.append(stops.residuals(x[1 + n:1 + n + 2 * C].reshape(-1, 2), x[0], obs.pivot))
+                out.append(stops.residuals(stop_xy, alpha, obs.pivot))
             return np.concatenate(out)
 
         x = least_squares(residuals, x, jac_sparsity=S, method="trf", x_scale="jac",
                           max_nfev=config.max_evaluations).x
-    alpha, theta, points = float(x[0]), x[1:n + 1], x[1 + n + 2 * C:].reshape(-1, 3)
+    alpha, theta, _, points = unpack(x)
+    alpha = float(alpha)
     obs = replace(obs, xy=positions(x))
     unseen = np.bincount(fit.photo, minlength=n) == 0  # only its compass held it: SfM's turn is better
     theta[unseen] = obs.heading[unseen] + alpha
