@@ -82,7 +82,9 @@ class RigAdjustmentConfig:
     takes its lengths between stops from SfM's models, whose photos had six free degrees,
     and a model can be stretched unevenly (apartment 14: one model's 1.8 m from its second
     to its third stop read 5.6 % shorter, against its 0.6 m from the first to the second,
-    than the truth; the stop 8 cm off). The few centimetres a placement's stop is off."""
+    than the truth; the stop 8 cm off). The few centimetres a placement's stop is off: an
+    error of the placement (SfM's 1 cm photos, the odometry between stops), not a length of
+    any scene; the scale is the spans' to hold, and a stop in a larger room is no less sure."""
     start_sigma_m: float = 0.005
     """... and the first stop (`RigObservations.pivot`, the known start) by this (m): the
     odometry's noise at the start (`CircleConfig.odometry_sigma_m`)."""
