@@ -91,8 +91,13 @@ class MapConfig:
     """COLMAP's random seed, of its mapping and of each photo pair's verification (reproducible maps)."""
     min_registered: int = 10
     """Fewest photos SfM must register."""
-    threads: int = 2
-    """Worker threads of the feature extraction (each photo's features do not depend on them)."""
+    threads: int = 1
+    """Worker threads of COLMAP's SIFT extraction. One, so that a mission repeats: on two, a
+    photo's keypoints now and then came out otherwise (apartment 13's 108 first-map photos
+    extracted 6 times: 2 runs differed from the first, in 1-2 photos; 0 of 8 on one thread),
+    a pair at the edge of `min_num_inliers` was then verified or not, the first map placed
+    18 or 19 photos in their circles and the whole mission went another way. One thread
+    costs 6.2 s instead of 4.7 s for 108 photos (re-posings extract only the new ones)."""
     mapping_threads: int = 1
     """Threads of COLMAP's matching, mapping and bundle adjustment. One, so that a mission
     repeats. On two, the CPU matcher now and then matched a pair otherwise (2 of 9 runs of

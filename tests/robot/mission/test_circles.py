@@ -181,7 +181,7 @@ def test_the_random_stage_of_an_apartment_is_mapped_nearly_whole():
     shots = list(random_exploration(robot, start, RandomExplorationConfig(n_photos=108), rng, Body(robot, start)))
     rmap = initial_map([s.photo.image for s in shots], robot.intrinsics, np.array([s.estimate for s in shots]),
                        np.array([s.photo.compass_rad for s in shots]), robot.cam_from_robot,
-                       MapConfig(threads=1))  # one thread: COLMAP repeats itself (with two, 97-108 photos)
+                       MapConfig())  # one extraction thread (MapConfig.threads): with two, 97-108 photos
     truth = {int(t["index"]): robot_camera(np.asarray(t["pose"]), robot.intrinsics, robot.image_size,
                                            robot.cam_from_robot) for t in robot.truth}
     err = [np.linalg.norm(c.center - truth[shots[i].photo.index].center) for i, c in rmap.cameras.items()]
