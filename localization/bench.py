@@ -16,6 +16,7 @@ pf_seconds_per_query: seconds per rendered-view localisation of a fountain-P11 p
 
 from __future__ import annotations
 
+from concurrent.futures import Future
 from pathlib import Path
 
 import cv2
@@ -71,10 +72,12 @@ def particle_likelihoods_per_s_64x48() -> dict:
 class BruteForceFeatureMap(FeatureMap):
     """The naive baseline: the same map, matched exhaustively (cv2.BFMatcher, L2)."""
 
-    def __init__(self, points, descriptors, owner, config):
-        super().__init__(points, descriptors, owner, config)
-        self.matcher = cv2.BFMatcher(cv2.NORM_L2)
-        self.matcher.add([np.ascontiguousarray(descriptors, np.float32)])
+    def _start_index(self) -> Future:  # no KD-tree built (nor building) beside it
+        matcher = cv2.BFMatcher(cv2.NORM_L2)
+        matcher.add([np.ascontiguousarray(self.descriptors, np.float32)])
+        built = Future()
+        built.set_result(matcher)
+        return built
 
 
 def pnp_s_per_query() -> dict:

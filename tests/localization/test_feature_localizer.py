@@ -11,7 +11,7 @@ from ibr.proxy.triangulation import sift_features
 from ibr.scene import load_scene
 from ibr.synthetic import textures
 from localization.feature_localizer import (FeatureLocalizerConfig, FeatureMap, pose_errors, tilted_features,
-                                            unique_matches)
+                                            trained_matcher, unique_matches)
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +46,8 @@ def test_a_map_matches_the_same_whatever_ran_before_it(monkeypatch):
     """FLANN's randomised KD-trees draw their splits from OpenCV's process-wide RNG; the map
     seeds it, so the same map built after other work in the process (here OpenCV random draws)
     returns the same approximate neighbours (unseeded, a mission's PnP fixes depended on
-    which maps had been built before, and a test on the tests run before it)."""
+    which maps had been built before, and a test on the tests run before it). The map's
+    background build gives the neighbours a build in the caller's thread gives."""
     import cv2
 
     rng = np.random.default_rng(0)
@@ -61,6 +62,8 @@ def test_a_map_matches_the_same_whatever_ran_before_it(monkeypatch):
     first = neighbours()
     cv2.randu(np.zeros((1000, 1), np.float32), 0.0, 1.0)  # other users of the RNG in between
     assert neighbours() == first
+    here = trained_matcher(descriptors, FeatureLocalizerConfig())  # built in this thread, not the background's
+    assert [m.trainIdx for m in here.match(queries)] == first
 
 
 WALL_PX_PER_M = 400.0  # texels per metre of the test wall
