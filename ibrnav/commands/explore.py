@@ -78,17 +78,21 @@ def run(args: argparse.Namespace) -> int:
 
 def _truth_report(world, robot, result) -> dict:
     """The mission against the simulator's truth (`robot.mission.evaluation`)."""
-    from robot.mission.evaluation import (facing_distances, localisation_errors, localisation_errors_by_region,
-                                          lost_episodes, map_scale_error, rooms_visited, true_poses)
+    from robot.mission.evaluation import (facing_distances, localisation_errors, localisation_errors_by_fix,
+                                          localisation_errors_by_region, lost_episodes, map_scale_error,
+                                          rooms_visited, true_poses)
 
     truth = true_poses(robot.truth)
     loc = localisation_errors(result.photos, truth)
     visited, rooms = rooms_visited(world, result.model_photos, truth)
     model = None if loc is None else loc["model"]
     by_region = localisation_errors_by_region(world, result.photos, truth)
+    by_fix = localisation_errors_by_fix(result.photos, truth)
     return {"localization_error_m": _position_error(loc), "heading_error_deg": _heading_error(loc),
             "localization_error_by_region_m": None if by_region is None else
             {k: _position_error(v) for k, v in by_region.items()},
+            "localization_error_by_fix_m": None if by_fix is None else
+            {**{k: _position_error(by_fix[k]) for k in ("fixed", "unfixed")}, "lost_unfixed": by_fix["lost_unfixed"]},
             "lost_photos": lost_episodes(result.photos, truth),
             "model_photos_error": None if model is None else {"position_m": _position_error(model),
                                                               "heading_deg": _heading_error(model)},

@@ -477,7 +477,7 @@ class AdaptiveMission:
         if cam is not None:
             cam = cam.with_pose(cam.cam_from_world, name=f"photo_{len(self.photos):05d}")
         dr = self.body.est.dead_reckoning.pose.copy() if isinstance(self.body, FilteredBody) else None
-        mp = MissionPhoto(photo, self.body.est.pose.copy(), stage, cam, dr)
+        mp = MissionPhoto(photo, self.body.est.pose.copy(), stage, cam, dr, fixed)
         self.photos.append(mp)
         self.obs.photo(mp)
         self.obs.estimate(self.body.est.pose, "pnp" if fixed else "odometry")

@@ -91,6 +91,28 @@ def lost_episodes(photos: list[MissionPhoto], truth: dict[int, np.ndarray], lost
     return {"photos": len(lost), "lost": int(lost.sum()), "episodes": len(runs), "longest": int(runs.max(initial=0))}
 
 
+def localisation_errors_by_fix(photos: list[MissionPhoto], truth: dict[int, np.ndarray],
+                               lost_m: float = LOST_M) -> dict | None:
+    """`localisation_errors` (without "model") of the adaptive stage's photos split by whether
+    a PnP fix of the photo was the filter's measurement (`MissionPhoto.fixed`): "fixed", and
+    "unfixed" (no pose, or a pose the checks rejected: the estimate rode the odometry since
+    the last fix); None for a part without photos. "lost_unfixed": the share of the photos
+    taken lost (more than `lost_m` off, m) that had no fix. The split says which way the
+    95th percentile goes: apartment 6 (main a2834fe) had fixed photos at a median of 5.2 cm
+    and p95 14.7 cm, unfixed ones at 9.8 and 32.4 cm, and 110 of its 147 lost photos unfixed.
+    Photos whose `fixed` is not known (a session resumed from before it was recorded) are in
+    neither part. None when the mission has no adaptive photo."""
+    adaptive = _adaptive_photos(photos, truth)
+    if not adaptive:
+        return None
+    parts = {"fixed": [p for p in adaptive if p.fixed is True], "unfixed": [p for p in adaptive if p.fixed is False]}
+    out = {k: _pose_errors(v, truth) if v else None for k, v in parts.items()}
+    known = parts["fixed"] + parts["unfixed"]
+    lost = _position_errors(known, truth) > lost_m if known else np.zeros(0, bool)
+    out["lost_unfixed"] = float(np.mean([p.fixed is False for p, k in zip(known, lost) if k])) if lost.any() else None
+    return out
+
+
 def _adaptive_photos(photos: list[MissionPhoto], truth: dict[int, np.ndarray]) -> list[MissionPhoto]:
     """The adaptive stage's photos (goal and localisation) that have a true pose."""
     return [p for p in photos if p.stage != "random" and p.photo.index in truth]

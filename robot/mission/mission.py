@@ -228,7 +228,7 @@ def _resume_adaptive(robot: Robot, state: dict, config: AdaptiveConfig, rng: np.
     """The adaptive stage as committed after `state["rounds"]` rounds (`robot.mission.journal`)."""
     rmap, cams = journal.load_map(state)
     photos = journal.resumed_photos(lambda r, ph: MissionPhoto(ph, np.asarray(r["pose"], float), r["stage"],
-                                                               cams.get(int(r["index"]))))
+                                                               cams.get(int(r["index"])), fixed=r.get("fixed")))
     xy = np.array([c.center[:2] for c in rmap.cameras.values()])
     loc = MissionLocalizer(np.asarray(state["dead_reckoning"], float), xy, config.filter, rng)
     loc.set_particles(state["particles"], state["log_w"])

@@ -22,13 +22,16 @@ class MissionPhoto:
     """A photo of the mission: `photo`; `estimate` (3,) the robot's pose estimate when it was
     taken; `stage` "random", "goal" or "localise" (taken to localise, not part of the model);
     `camera` its posed camera once SfM or PnP posed it (None: unposed); `dead_reckoning` (3,)
-    the compass-aided dead-reckoning pose then (the baseline the filter is compared with)."""
+    the compass-aided dead-reckoning pose then (the baseline the filter is compared with);
+    `fixed` whether a PnP fix of the photo passed the checks and was the filter's measurement
+    (None: not known, as for the random stage's photos)."""
 
     photo: Photo
     estimate: np.ndarray
     stage: str
     camera: Camera | None = None
     dead_reckoning: np.ndarray | None = None
+    fixed: bool | None = None
 
 
 class MissionObserver:

@@ -51,7 +51,7 @@ class RecordingObserver(MissionObserver):
     def photo(self, mp: MissionPhoto) -> None:
         if self.session is not None:
             self.session.add_photo(mp.photo, pose=mp.estimate, stage=mp.stage,
-                                   localised=mp.camera is not None and mp.stage != "random")
+                                   localised=mp.camera is not None and mp.stage != "random", fixed=mp.fixed)
         truth = self._truth(mp.photo.index)
         if mp.stage != "localise":
             self.n_model += 1

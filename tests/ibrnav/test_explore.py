@@ -64,6 +64,7 @@ def test_explore_in_an_apartment_reports_rooms_and_why_it_stopped(tmp_path):
     assert set(report["rooms_visited"]) <= set(report["rooms"])
     assert report["localization_error_m"] is None and report["map_scale_error"] is None  # no adaptive stage, no map
     assert report["localization_error_by_region_m"] is None and report["lost_photos"] is None
+    assert report["localization_error_by_fix_m"] is None
     facing = report["facing_distance_m"]  # one circle in a room: every photo faces a wall 0-10 m ahead
     assert facing["adaptive"] is None and facing["random"]["photos"] == 4
     assert 0 < facing["random"]["p25"] <= facing["random"]["median"] <= facing["random"]["p75"] < 10

@@ -1,17 +1,18 @@
 """`robot.mission.evaluation.localisation_errors`: the estimate at the adaptive stage's
-photos against known true poses, over all of them, over its model (goal) photos, and split
-by whether the random stage photographed the region where each was taken."""
+photos against known true poses, over all of them, over its model (goal) photos, split
+by whether the random stage photographed the region where each was taken, and by whether
+a vision fix was the filter's measurement at the photo."""
 
 import numpy as np
 
-from robot.mission.evaluation import localisation_errors, localisation_errors_by_region
+from robot.mission.evaluation import localisation_errors, localisation_errors_by_fix, localisation_errors_by_region
 from robot.mission.observer import MissionPhoto
 from robot.protocol import Photo
 
 
-def mission_photo(index: int, stage: str, estimate) -> MissionPhoto:
+def mission_photo(index: int, stage: str, estimate, fixed: bool | None = None) -> MissionPhoto:
     photo = Photo(np.zeros((2, 2, 3), np.uint8), float(index), np.zeros(3), 0.0, 1.0, index)
-    return MissionPhoto(photo, np.asarray(estimate, float), stage)
+    return MissionPhoto(photo, np.asarray(estimate, float), stage, fixed=fixed)
 
 
 def test_model_photos_are_reported_apart_from_the_localisation_looks():
@@ -55,6 +56,24 @@ def test_photos_in_regions_the_random_stage_never_saw_are_reported_apart():
     only_west = localisation_errors_by_region(TwoRooms(), photos[:4], truth)
     assert only_west["later_regions"] is None and only_west["random_stage_regions"]["photos"] == 2
     assert localisation_errors_by_region(TwoRooms(), photos[:2], truth) is None  # no adaptive photo
+
+
+def test_photos_a_fix_localised_are_reported_apart_from_those_that_rode_the_odometry():
+    truth = {i: np.array([float(i), 0.0, 0.0]) for i in range(7)}
+    photos = [mission_photo(0, "random", truth[0]),  # the random stage is not counted
+              mission_photo(1, "localise", [1.02, 0.0, 0.0], fixed=True),  # 2 cm
+              mission_photo(2, "goal", [2.0, 0.04, 0.0], fixed=True),  # 4 cm
+              mission_photo(3, "localise", [3.2, 0.0, 0.0], fixed=True),  # a wrong fix: 20 cm, lost
+              mission_photo(4, "localise", [4.3, 0.0, 0.0], fixed=False),  # no fix: 30 cm, lost
+              mission_photo(5, "goal", [5.0, 0.5, 0.0], fixed=False),  # 50 cm, lost
+              mission_photo(6, "localise", [6.1, 0.0, 0.0])]  # not known: in neither part
+    err = localisation_errors_by_fix(photos, truth)
+    assert err["fixed"]["photos"] == 3 and np.isclose(err["fixed"]["median"], 0.04)
+    assert err["unfixed"]["photos"] == 2 and np.isclose(err["unfixed"]["median"], 0.4)
+    assert np.isclose(err["lost_unfixed"], 2 / 3)  # of the three lost photos, two had no fix
+    only_fixed = localisation_errors_by_fix(photos[:3], truth)
+    assert only_fixed["unfixed"] is None and only_fixed["lost_unfixed"] is None  # nothing lost
+    assert localisation_errors_by_fix(photos[:1], truth) is None  # no adaptive photo
 
 
 def test_first_map_scale_is_measured_apart_from_photos_joined_later():

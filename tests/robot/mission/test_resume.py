@@ -62,6 +62,7 @@ def test_demo_killed_twice_resumes_to_the_planned_capture(tmp_path):
     assert [r["index"] for r in photos] == list(range(len(photos)))
     assert [r["robot_index"] for r in photos] == list(range(len(photos)))  # the robot's counter restored
     assert sum(r["stage"] == "random" for r in photos) == 36
+    assert all(isinstance(r["fixed"], bool) == (r["stage"] != "random") for r in photos)  # fixed by vision or not
     assert sum(r["stage"] != "localise" for r in photos) == captured <= 40  # the photo budget, not more
     for i, r in enumerate(log):  # each photo's records once: photo, evaluation, estimate
         if r["kind"] == "photo":
