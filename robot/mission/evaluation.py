@@ -107,9 +107,9 @@ def localisation_errors_by_fix(photos: list[MissionPhoto], truth: dict[int, np.n
         return None
     parts = {"fixed": [p for p in adaptive if p.fixed is True], "unfixed": [p for p in adaptive if p.fixed is False]}
     out = {k: _pose_errors(v, truth) if v else None for k, v in parts.items()}
-    known = parts["fixed"] + parts["unfixed"]
-    lost = _position_errors(known, truth) > lost_m if known else np.zeros(0, bool)
-    out["lost_unfixed"] = float(np.mean([p.fixed is False for p, k in zip(known, lost) if k])) if lost.any() else None
+    lost = _position_errors(parts["fixed"] + parts["unfixed"], truth) > lost_m
+    unfixed = np.arange(len(lost)) >= len(parts["fixed"])
+    out["lost_unfixed"] = float(unfixed[lost].mean()) if lost.any() else None
     return out
 
 
