@@ -107,9 +107,9 @@ def localisation_errors_by_fix(photos: list[MissionPhoto], truth: dict[int, np.n
         return None
     parts = {"fixed": [p for p in adaptive if p.fixed is True], "unfixed": [p for p in adaptive if p.fixed is False]}
     out = {k: _pose_errors(v, truth) if v else None for k, v in parts.items()}
-    lost = _position_errors(parts["fixed"] + parts["unfixed"], truth) > lost_m
-    unfixed = np.arange(len(lost)) >= len(parts["fixed"])
-    out["lost_unfixed"] = float(unfixed[lost].mean()) if lost.any() else None
+    lost = {k: int((_position_errors(v, truth) > lost_m).sum()) for k, v in parts.items()}
+    n_lost = lost["fixed"] + lost["unfixed"]
+    out["lost_unfixed"] = lost["unfixed"] / n_lost if n_lost else None
     return out
 
 
