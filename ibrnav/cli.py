@@ -22,6 +22,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "eval-loc": ("ibrnav.commands.eval_loc", "leave-one-out localisation of a scene's photos"),
     "eval-track": ("ibrnav.commands.eval_track", "particle-filter tracking + kidnapping in a synthetic world"),
     "eval-capture": ("ibrnav.commands.eval_capture", "ULR of a capture's final model against the world's true views"),
+    "eval-missions": ("ibrnav.commands.eval_missions", "the capture mission over many worlds, against the issue's bars"),
     "drive": ("ibrnav.commands.drive", "a robot drives a loop in synthetic:office, recorded to rerun"),
     "demo": ("ibrnav.commands.demo", "the autonomous scene-capture mission in synthetic:office"),
     "explore": ("ibrnav.commands.explore", "run a capture strategy in a synthetic scene with a photo budget"),
