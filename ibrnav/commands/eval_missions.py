@@ -59,7 +59,7 @@ def comparison_table(pairs: dict) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from robot.mission.sweep import compare, load_reports, parse_worlds, run_sweep, summarise
+    from robot.mission.sweep import compare, load_reports, mission_name, parse_worlds, run_sweep, summarise
 
     try:
         worlds = parse_worlds(args.worlds)
@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
         failed = run_sweep(worlds, out, options, args.jobs, strategies, args.timeout)
     elif not out.is_dir():
         raise EvalMissionsError(f"{out}: no such folder (run the sweep first, without --summary-only)")
-    wanted = {f"{w}_{s}" for w, s in worlds}
+    wanted = {mission_name(w, s) for w, s in worlds}
     reports = {n: r for n, r in load_reports(out).items() if n.split(".")[0] in wanted}
     if not any("." not in n for n in reports):
         raise EvalMissionsError(f"{out}: none of the {len(wanted)} missions asked for has a report")
