@@ -172,6 +172,21 @@ def sonar_grid(poses: np.ndarray, ranges: np.ndarray, cell_m: float,
     return grid
 
 
+def revealed(grid: SonarGrid, pose: np.ndarray, range_m: float, config: SonarConfig = SonarConfig()) -> int:
+    """How many of `grid`'s unknown cells one reading `range_m` (m) taken at the robot pose
+    (3,) would make free, as `sonar_grid` marks them (its cone free up to a cell short of a
+    surface, or to the maximum): what that reading taught the grid."""
+    r = min(float(range_m), config.max_range_m)
+    hit = r < config.max_range_m - config.max_tol_m
+    n_rays = int(np.ceil(2 * config.half_cone_rad * config.max_range_m / (grid.cell_m / 2))) + 1
+    a = pose[2] + np.linspace(-config.half_cone_rad, config.half_cone_rad, n_rays)
+    t = np.arange(0.0, max(r - (grid.cell_m if hit else 0.0), 0.0), grid.cell_m / 2)
+    i, j = grid.cells((pose[:2] + t[:, None, None] * np.c_[np.cos(a), np.sin(a)][None]).reshape(-1, 2))
+    H, W = grid.free.shape
+    ok = (i >= 0) & (i < H) & (j >= 0) & (j < W)
+    return int(grid.unknown_mask.reshape(-1)[np.unique(i[ok] * W + j[ok])].sum())
+
+
 def _count(grid: SonarGrid, counts: np.ndarray, xy: np.ndarray) -> None:
     """Add one hit to each distinct cell of the world points xy (N, 2)."""
     i, j = grid.cells(xy)

@@ -244,6 +244,7 @@ def _resume_adaptive(robot: Robot, state: dict, config: AdaptiveConfig, rng: np.
     mission.given_up_goals = [np.asarray(g, float) for g in state.get("given_up_goals", [])]
     mission.bumps = [np.asarray(b, float) for b in state.get("bumps", [])]
     mission.trail = [np.asarray(s, float) for s in state.get("trail", [])]
+    mission.sonar_readings = [np.asarray(s, float) for s in state.get("sonar_readings", [])]
     if state.get("stepped_from") is not None:  # the last round ended on a stereo pair's side step
         mission.stepped_from = np.asarray(state["stepped_from"], float)
     result = MissionResult(photos, rmap, rounds=state["rounds"])
@@ -349,6 +350,8 @@ def _adaptive_round(mission: AdaptiveMission, result: MissionResult, goals: np.n
             continue
         with watchdog(f"round {r + 1}: driving to goal {k + 1} at ({g[0]:.2f}, {g[1]:.2f})", limit):
             reached = mission.go_to(g, grid)
+            if reached and k >= len(goals) - mission.n_frontier_goals:  # the round's last goals are its frontiers'
+                mission.sweep_ultrasonic()
             if reached:
                 new += mission.capture_at(g, left)
             mission.grow_tracks()

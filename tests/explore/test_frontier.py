@@ -4,7 +4,7 @@ closed room has none, a doorway makes one that faces out of the room."""
 import numpy as np
 import shapely
 
-from explore.frontier import SonarConfig, frontiers, sonar_grid, toward_unknown
+from explore.frontier import SonarConfig, frontiers, revealed, sonar_grid, toward_unknown
 
 CFG = SonarConfig()
 
@@ -90,3 +90,22 @@ def test_a_box_the_beam_met_blocks_the_sight_lines_through_it():
     assert grid.blocks(np.tile(here, (3, 1)), behind).all()
     assert not grid.blocks(np.tile(here, (4, 1)), clear).any()
     assert grid.blocks(np.zeros((0, 2)), np.zeros((0, 2))).shape == (0,)
+
+
+def test_a_reading_down_a_corridor_reveals_more_than_one_into_its_wall():
+    """Apartment 7's corridor (1.35 m wide, 10 m long): the robot turned in place at its
+    south end, so the grid is known for about 2.5 m around it. From 2 m up the corridor,
+    0.3 m off its west wall, the reading straight up the corridor (nothing in range) makes
+    more than 3 times as many unknown cells free as one at 100 degrees, which reads the wall
+    under a metre away; a reading in the known part teaches the grid nothing. The count is
+    the sensor model's own (`sonar_grid` run again with the reading added)."""
+    walls = shapely.box(0.0, -1.0, 1.35, 9.0).exterior
+    poses, ranges = readings(walls, (0.675, 0.0))
+    grid = sonar_grid(poses, ranges, 0.075)
+    up = np.array([0.3, 2.0, np.pi / 2])
+    aside = np.array([0.3, 2.0, np.radians(100.0)])
+    n_up, n_aside = revealed(grid, up, CFG.max_range_m, CFG), revealed(grid, aside, 0.88, CFG)
+    assert n_up > 3 * n_aside > 0
+    again = sonar_grid(np.r_[poses, up[None]], np.r_[ranges, CFG.max_range_m], 0.075)
+    assert n_up == int((~again.unknown_mask).sum() - (~grid.unknown_mask).sum())  # the cells it made known
+    assert revealed(grid, np.array([0.675, 0.0, 0.0]), 0.6, CFG) == 0

@@ -8,7 +8,7 @@ import pytest
 import shapely
 
 from explore.candidates import free_space_from_mesh, sample_candidates
-from explore.frontier import frontiers
+from explore.frontier import frontiers, revealed
 from explore.path_simplify import plan_path
 from ibr.scene import load_scene
 from ibr.synthetic import make_world
@@ -340,6 +340,34 @@ def test_a_goal_given_up_rules_out_its_cells_not_its_frontier(office):
     on_it = [g for g in again if np.linalg.norm(cells - g[:2], axis=1).min() < 1e-9]
     assert len(on_it) == 1
     assert np.hypot(*(on_it[0][:2] - first[:2])) >= m.config.goal_separation_m
+
+
+def test_a_frontier_sweep_reads_a_full_circle_into_the_ultrasonics_grid(office):
+    """`sweep_ultrasonic` (`sweep_frontiers` on): one reading per cone width round the
+    circle, each kept for the ultrasonic's grid, which then knows every cell they reached
+    (the office's sweep is open some way: they teach it something); the robot does not
+    move. With `sweep_frontiers` off (the default) nothing is read."""
+    m, robot, _ = office
+    m.choose_goals()
+    before, n0, kept = m.sonar(), len(m.sonar_readings), m.config
+    where = robot.true_pose[:2].copy()
+    try:
+        m.config = replace(kept, sweep_frontiers=True)
+        taught = m.sweep_ultrasonic()
+        sweep = np.array(m.sonar_readings[n0:])
+        assert len(sweep) == int(np.ceil(np.pi / m.config.sonar.half_cone_rad))
+        step = 2 * m.config.sonar.half_cone_rad
+        turns = np.diff(np.unwrap(sweep[:, 2]))  # the estimate's, with the compass's noise
+        assert (turns > step / 2).all() and (turns < 3 * step / 2).all()
+        assert abs(turns.sum() - step * len(turns)) < np.radians(10)
+        assert taught == sum(revealed(before, r[:3], r[3], m.config.sonar) for r in sweep) > 0
+        assert (~m.sonar().unknown_mask).sum() > (~before.unknown_mask).sum()
+        assert np.allclose(robot.true_pose[:2], where)
+        m.config = kept
+        assert m.sweep_ultrasonic() == 0 and len(m.sonar_readings) == n0 + len(sweep)
+    finally:
+        m.config = kept
+        del m.sonar_readings[n0:]
 
 
 def test_points_in_the_open_room_are_seen_through_and_points_on_its_surfaces_are_not(office):

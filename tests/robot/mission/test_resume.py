@@ -24,7 +24,7 @@ from robot.sim_robot import SimRobot, SimRobotConfig
 
 BIN = Path(sys.executable).parent
 DEMO = ["demo", "--world", "office", "--random-photos", "36", "--circle-step-deg", "20", "--photos", "40", "--width", "240",
-        "--height", "180", "--max-rounds", "4", "--goals-per-round", "2", "--tour-frames", "0"]
+        "--height", "180", "--max-rounds", "4", "--goals-per-round", "2", "--tour-frames", "0", "--sweep-frontiers"]
 
 
 def demo(session: Path, kill_at: str | None = None) -> subprocess.CompletedProcess:

@@ -85,6 +85,34 @@ def test_a_round_skips_its_goals_next_to_one_it_gave_up():
     assert mission.tried == [5.0, 5.0 + 3 * sep] and mission.given_up == 1
 
 
+class TwoFrontiers(OneGoalPerRound):
+    """A round of three goals, the last two at frontiers; it records the goals at which it
+    swept the ultrasonic round (`sweep_ultrasonic`)."""
+
+    def __init__(self, photos: list, config: AdaptiveConfig):
+        super().__init__(photos, config)
+        self.swept, self.n_frontier_goals = [], 2
+
+    def choose_goals(self):
+        return np.array([[0.0, 0.0, 0.0], [5.0, 0.0, 1.0], [9.0, 0.0, 2.0]]), 1.0, None
+
+    def go_to(self, goal, grid) -> bool:
+        self.at = goal[0]
+        return True
+
+    def sweep_ultrasonic(self) -> int:
+        self.swept.append(self.at)
+        return 1
+
+
+def test_the_ultrasonic_is_swept_at_frontier_goals_only():
+    photos = [MissionPhoto(None, np.zeros(3), "random") for _ in range(10)]
+    mission = TwoFrontiers(photos, AdaptiveConfig(max_rounds=1, step_limit_s=None))
+    adaptive_rounds(mission, MissionResult(photos, None), photo_budget=50)
+    assert mission.swept == [5.0, 9.0]
+    assert [p.estimate[2] for p in photos[10:]] == [0.0, 0.0, 1.0, 1.0, 2.0, 2.0]  # the photos face the goals' way
+
+
 def test_the_default_has_no_round_limit():
     assert AdaptiveConfig().max_rounds is None
 
