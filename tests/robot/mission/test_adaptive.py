@@ -370,6 +370,26 @@ def test_a_frontier_sweep_reads_a_full_circle_into_the_ultrasonics_grid(office):
         del m.sonar_readings[n0:]
 
 
+def test_the_sweeps_readings_are_committed_with_the_round(office, tmp_path):
+    """A round's commit (`SessionJournal.round_done`) holds the readings taken without a
+    photo, as a resumed mission reads them back (`mission._resume_adaptive`)."""
+    from robot.mission.journal import SessionJournal
+    from robot.mission.mission import MissionResult
+    from robot.session import CaptureSession
+
+    m, robot, _ = office
+    n0 = len(m.sonar_readings)
+    m.sonar_readings += [np.array([0.5, -1.0, 0.3, 1.27]), np.array([0.5, -1.0, 0.65, 2.55])]
+    try:
+        with CaptureSession.create(tmp_path / "s", robot.intrinsics, robot.image_size, robot.cam_from_robot) as s:
+            SessionJournal(s, robot, replayable=True).round_done(m, MissionResult(m.photos, m.map, rounds=1))
+        state = CaptureSession.open(tmp_path / "s").last_commit["state"]
+        back = [np.asarray(r, float) for r in state["sonar_readings"]]  # as `_resume_adaptive` reads them
+        assert len(back) == len(m.sonar_readings) and all(np.array_equal(a, b) for a, b in zip(back, m.sonar_readings))
+    finally:
+        del m.sonar_readings[n0:]
+
+
 def test_points_in_the_open_room_are_seen_through_and_points_on_its_surfaces_are_not(office):
     """`seen_through`, the check of a re-posing's new points: a point on the room's surfaces
     lies behind what the photos saw; one in the open room, at the camera's height, in front."""
