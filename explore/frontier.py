@@ -157,43 +157,49 @@ def sonar_grid(poses: np.ndarray, ranges: np.ndarray, cell_m: float,
     grid = SonarGrid(lo, cell_m, np.zeros((H, W), np.int32), np.zeros((H, W), np.int32))
     if len(poses) == 0:
         return grid
-    # rays half a cell apart at the longest range, so the beam leaves no cell between rays
-    n_rays = int(np.ceil(2 * config.half_cone_rad * config.max_range_m / (cell_m / 2))) + 1
-    offsets = np.linspace(-config.half_cone_rad, config.half_cone_rad, n_rays)
     for pose, r in zip(poses, ranges):
-        a = pose[2] + offsets
-        dirs = np.c_[np.cos(a), np.sin(a)]
-        hit = r < config.max_range_m - config.max_tol_m
-        # free: every half cell along each ray, short of the surface by a cell
-        t = np.arange(0.0, max(r - (cell_m if hit else 0.0), 0.0), cell_m / 2)
-        _count(grid, grid.free, (pose[:2] + t[:, None, None] * dirs[None]).reshape(-1, 2))
-        if hit:
-            _count(grid, grid.occupied, pose[:2] + r * dirs)
+        free, arc = _reading(pose, r, cell_m, config)
+        _count(grid, grid.free, free)
+        if arc is not None:
+            _count(grid, grid.occupied, arc)
     return grid
+
+
+def _reading(pose: np.ndarray, r: float, cell_m: float, config: SonarConfig) -> tuple[np.ndarray, np.ndarray | None]:
+    """What one reading r (m, at most `max_range_m`) taken at the robot pose (3,) marks, on
+    rays half a cell apart at the longest range (the beam leaves no cell between rays): the
+    world points (K, 2) it makes free, every half cell along each ray short of the surface
+    by a cell (to the maximum when nothing is in range), and the arc (R, 2) at r it makes
+    occupied (None: nothing in range)."""
+    n_rays = int(np.ceil(2 * config.half_cone_rad * config.max_range_m / (cell_m / 2))) + 1
+    a = pose[2] + np.linspace(-config.half_cone_rad, config.half_cone_rad, n_rays)
+    dirs = np.c_[np.cos(a), np.sin(a)]
+    hit = r < config.max_range_m - config.max_tol_m
+    t = np.arange(0.0, max(r - (cell_m if hit else 0.0), 0.0), cell_m / 2)
+    free = (pose[:2] + t[:, None, None] * dirs[None]).reshape(-1, 2)
+    return free, (pose[:2] + r * dirs if hit else None)
 
 
 def revealed(grid: SonarGrid, pose: np.ndarray, range_m: float, config: SonarConfig = SonarConfig()) -> int:
     """How many of `grid`'s unknown cells one reading `range_m` (m) taken at the robot pose
     (3,) would make free, as `sonar_grid` marks them (its cone free up to a cell short of a
     surface, or to the maximum): what that reading taught the grid."""
-    r = min(float(range_m), config.max_range_m)
-    hit = r < config.max_range_m - config.max_tol_m
-    n_rays = int(np.ceil(2 * config.half_cone_rad * config.max_range_m / (grid.cell_m / 2))) + 1
-    a = pose[2] + np.linspace(-config.half_cone_rad, config.half_cone_rad, n_rays)
-    t = np.arange(0.0, max(r - (grid.cell_m if hit else 0.0), 0.0), grid.cell_m / 2)
-    i, j = grid.cells((pose[:2] + t[:, None, None] * np.c_[np.cos(a), np.sin(a)][None]).reshape(-1, 2))
-    H, W = grid.free.shape
-    ok = (i >= 0) & (i < H) & (j >= 0) & (j < W)
-    return int(grid.unknown_mask.reshape(-1)[np.unique(i[ok] * W + j[ok])].sum())
+    free, _ = _reading(np.asarray(pose, float), min(float(range_m), config.max_range_m), grid.cell_m, config)
+    return int(grid.unknown_mask.reshape(-1)[_distinct_cells(grid, free)].sum())
 
 
 def _count(grid: SonarGrid, counts: np.ndarray, xy: np.ndarray) -> None:
     """Add one hit to each distinct cell of the world points xy (N, 2)."""
+    counts.reshape(-1)[_distinct_cells(grid, xy)] += 1
+
+
+def _distinct_cells(grid: SonarGrid, xy: np.ndarray) -> np.ndarray:
+    """The flat indices (row-major) of the distinct grid cells of the world points xy (N, 2)
+    that lie on the grid."""
     i, j = grid.cells(xy)
-    H, W = counts.shape
+    H, W = grid.free.shape
     ok = (i >= 0) & (i < H) & (j >= 0) & (j < W)
-    flat = np.unique(i[ok] * W + j[ok])
-    counts.reshape(-1)[flat] += 1
+    return np.unique(i[ok] * W + j[ok])
 
 
 def frontiers(grid: SonarGrid, min_width_m: float) -> list[np.ndarray]:

@@ -350,9 +350,9 @@ def _adaptive_round(mission: AdaptiveMission, result: MissionResult, goals: np.n
             continue
         with watchdog(f"round {r + 1}: driving to goal {k + 1} at ({g[0]:.2f}, {g[1]:.2f})", limit):
             reached = mission.go_to(g, grid)
-            if reached and k >= len(goals) - mission.n_frontier_goals:  # the round's last goals are its frontiers'
-                mission.sweep_ultrasonic()
             if reached:
+                if k >= len(goals) - mission.n_frontier_goals:  # the round's last goals are its frontiers'
+                    mission.sweep_ultrasonic()
                 new += mission.capture_at(g, left)
             mission.grow_tracks()
         if reached:
