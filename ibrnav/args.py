@@ -61,7 +61,7 @@ def open_robot(args: argparse.Namespace, world, start: np.ndarray):
 def add_mission_args(p: argparse.ArgumentParser, photos_default: int) -> None:
     """--seed, --photos (the budget), --random-photos, --circle-step-deg, --max-rounds,
     --goals-per-round, --min-gain-deg, --far-goals, --retry-tilts / --no-retry-tilts,
-    --sweep-frontiers, --floor-spans."""
+    --bundle-adjust, --sweep-frontiers, --floor-spans."""
     p.add_argument("--seed", type=int, default=0, help="world, noise and planner seed")
     p.add_argument("--photos", type=int, default=photos_default, help="photo budget of the model")
     p.add_argument("--random-photos", type=int, default=100, help="photos of the random-exploration stage")
@@ -79,6 +79,10 @@ def add_mission_args(p: argparse.ArgumentParser, photos_default: int) -> None:
     p.add_argument("--retry-tilts", action=argparse.BooleanOptionalAction, default=True,
                    help="a photo plain SIFT cannot localise is described again at simulated tilts (ASIFT-style) "
                    "and tried once more (on by default; --no-retry-tilts: plain SIFT only)")
+    p.add_argument("--bundle-adjust", action="store_true",
+                   help="at each map rebuild, bundle-adjust the photos posed since the first map with their "
+                   "tracks, the first map's photos held (off by default: on 15 worlds the p95 fell on 11 and "
+                   "the goal photos' error on 10, but rooms, goals given up and seconds missed their rule)")
     p.add_argument("--sweep-frontiers", action="store_true",
                    help="at a frontier goal the robot turns a full circle reading the ultrasonic before its "
                    "photos, so the frontier moves on past the walls a single reading meets (off by default: "
@@ -93,6 +97,7 @@ def add_mission_args(p: argparse.ArgumentParser, photos_default: int) -> None:
 def mission_config(args: argparse.Namespace):
     """The `AdaptiveConfig` of the mission flags."""
     from robot.mission.adaptive import ASIFT_TILTS, AdaptiveConfig
+    from robot.mission.bundle import BundleConfig
     from robot.mission.map_building import MapConfig
 
     if not 0 <= args.far_goals <= args.goals_per_round:
@@ -101,7 +106,7 @@ def mission_config(args: argparse.Namespace):
     return AdaptiveConfig(max_rounds=args.max_rounds, goals_per_round=args.goals_per_round,
                           min_gain_rad=np.radians(args.min_gain_deg), far_goals_per_round=args.far_goals,
                           retry_tilts=ASIFT_TILTS if args.retry_tilts else (), sweep_frontiers=args.sweep_frontiers,
-                          map=MapConfig(floor_spans=args.floor_spans))
+                          bundle=BundleConfig() if args.bundle_adjust else None, map=MapConfig(floor_spans=args.floor_spans))
 
 
 def random_config(args: argparse.Namespace):

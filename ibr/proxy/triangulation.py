@@ -143,12 +143,12 @@ def triangulate_pair(a: Camera, b: Camera, xa: np.ndarray, xb: np.ndarray,
     return P[idx], idx
 
 
-def triangulate_matches(a: Camera, b: Camera, fa: Features, fb: Features,
-                        cfg: TriangulationConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Match the features of two posed views, keep the epipolar-consistent matches and
-    triangulate them. Returns world points (M, 3) and each point's feature indices (M, 2)
-    into fa and fb."""
-    m = match_features(fa, fb, cfg.ratio)
+def triangulate_matches(a: Camera, b: Camera, fa: Features, fb: Features, cfg: TriangulationConfig,
+                        matches: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Match the features of two posed views (or take their `matches` (M, 2), from
+    `match_features` before), keep the epipolar-consistent matches and triangulate them.
+    Returns world points (M, 3) and each point's feature indices (M, 2) into fa and fb."""
+    m = match_features(fa, fb, cfg.ratio) if matches is None else matches
     xa, xb = fa.uv[m[:, 0]], fb.uv[m[:, 1]]
     good = np.flatnonzero(sampson_distance(fundamental_matrix(a, b), xa, xb) < cfg.max_epipolar_px)
     P, idx = triangulate_pair(a, b, xa[good], xb[good], cfg)
@@ -171,15 +171,17 @@ def triangulate_views(cameras: list[Camera], features: list[Features],
                               np.concatenate(pairs))
 
 
-def pair_tracks(cameras: list[Camera], feats: list[Features], pairs: np.ndarray, cfg: TriangulationConfig):
+def pair_tracks(cameras: list[Camera], feats: list[Features], pairs: np.ndarray, cfg: TriangulationConfig,
+                matches=None):
     """Triangulate the epipolar-consistent SIFT matches of the given view `pairs` (P, 2)
-    with the poses fixed. Returns points (N, 3), colours (N, 3) uint8, the two descriptors of
+    with the poses fixed (`matches(i, j)`, when given, gives views i and j's matches). Returns points (N, 3), colours (N, 3) uint8, the two descriptors of
     each point's features (2N, 128) with their owners (2N,), and the first view of each point
     (a map a feature localiser can match against)."""
     pts, cols, descs, owners, first = [], [], [], [], []
     n = 0
     for i, j in pairs:
-        P, mi = triangulate_matches(cameras[i], cameras[j], feats[i], feats[j], cfg)
+        P, mi = triangulate_matches(cameras[i], cameras[j], feats[i], feats[j], cfg,
+                                    None if matches is None else matches(i, j))
         pts.append(P)
         cols.append(feats[i].colors[mi[:, 0]])
         descs += [feats[i].descriptors[mi[:, 0]], feats[j].descriptors[mi[:, 1]]]

@@ -954,9 +954,10 @@ class Tracks:
 
 
 def stereo_tracks(cameras: dict[int, Camera], features, cfg: TriangulationConfig,
-                  only: set[int] | None = None) -> Tracks:
+                  only: set[int] | None = None, matches=None) -> Tracks:
     """Tracks of the `stereo_pairs` of `cameras` {index: Camera} (only the pairs with a photo
-    in `only`, when given), the poses fixed; `features(index)` gives a photo's features."""
+    in `only`, when given), the poses fixed; `features(index)` gives a photo's features,
+    `matches(a, b)` (optional, `robot.mission.bundle.PairMatches`) two photos' matches."""
     order = np.array(sorted(cameras))
     pairs = stereo_pairs([cameras[i] for i in order], cfg.neighbours)
     ids = order[pairs] if len(pairs) else np.zeros((0, 2), int)
@@ -968,7 +969,8 @@ def stereo_tracks(cameras: dict[int, Camera], features, cfg: TriangulationConfig
     local = {i: k for k, i in enumerate(used)}
     cams = [cameras[i] for i in used]
     P, C, D, O, first = pair_tracks(cams, [features(i) for i in used],
-                                    np.array([[local[a], local[b]] for a, b in ids]), cfg)
+                                    np.array([[local[a], local[b]] for a, b in ids]), cfg,
+                                    None if matches is None else (lambda a, b: matches(used[a], used[b])))
     return Tracks(P, C, np.array([cams[f].center for f in first]).reshape(-1, 3), D, O)
 
 

@@ -52,6 +52,20 @@ def test_retry_tilts_is_on_unless_turned_off():
     assert mission_config(parser.parse_args(["--no-retry-tilts"])).retry_tilts == ()
 
 
+def test_bundle_adjustment_is_off_unless_turned_on():
+    """By default the mission keeps its fixes' poses; `--bundle-adjust` adjusts the grown
+    photos at each rebuild."""
+    import argparse
+
+    from ibrnav.args import add_mission_args, mission_config
+    from robot.mission.bundle import BundleConfig
+
+    parser = argparse.ArgumentParser()
+    add_mission_args(parser, 261)
+    assert mission_config(parser.parse_args([])).bundle is None
+    assert mission_config(parser.parse_args(["--bundle-adjust"])).bundle == BundleConfig()
+
+
 def test_explore_runs_with_a_seeded_spec(tmp_path):
     report = random_explore(tmp_path, "synthetic:office?seed=3", 3, 0)
     assert report["scene"] == "synthetic:office?seed=3" and report["photos"] == 3
