@@ -81,7 +81,7 @@ def add_mission_args(p: argparse.ArgumentParser, photos_default: int) -> None:
                    "and tried once more (on by default; --no-retry-tilts: plain SIFT only)")
     p.add_argument("--bundle-adjust", action="store_true",
                    help="at each map rebuild, bundle-adjust the photos posed since the first map with their "
-                   "tracks, the first map's photos held (off by default: on 15 worlds the p95 fell on 11 and "
+                   "tracks, the first map's photos held (off by default: on 15 worlds the p95 fell on 10 and "
                    "the goal photos' error on 10, but rooms, goals given up and seconds missed their rule)")
     p.add_argument("--sweep-frontiers", action="store_true",
                    help="at a frontier goal the robot turns a full circle reading the ultrasonic before its "

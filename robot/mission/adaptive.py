@@ -238,7 +238,7 @@ class AdaptiveConfig:
     the first map's photos held (`AdaptiveMission.adjust`, `robot.mission.bundle`; `explore
     --bundle-adjust`); None: never. Off by default (stop of 2026-12-01, sixth; 15 worlds,
     apartments 0-9 and offices 0-4, against main): the goal photos' position error fell at the
-    median on 10 and at the p95 on 11 (office 0: 3.3 / 16.0 -> 1.2 / 4.6 cm), the localisation
+    median on 10 and at the p95 on 12 (office 0: 3.3 / 16.0 -> 1.2 / 4.6 cm), the localisation
     p95's median 16.0 -> 10.6 cm (worst 41.6 -> 39.5), lost photos 864 -> 599; but its rule
     also asked for a median <= 5 cm on 12 worlds (11), 27 rooms (25), 62 goals given up at
     most (67) and seconds up 20 % at most (median +47 %: the adjustment and the tracks made
