@@ -29,7 +29,8 @@ From the map of the photos so far (`robot.mission.map_building`), each round:
 5. photographs at each goal and localises those photos; after every goal, the photos a fix
    posed since (goal and localise photos) add their tracks to what PnP matches against
    (`grow_tracks`), and after the round the map is rebuilt with the goal photos
-   (triangulation with the localised poses fixed, Poisson mesh, `rebuild`).
+   (triangulation with the localised poses fixed, Poisson mesh, `rebuild`; with `bundle`, the
+   photos posed since the first map are bundle-adjusted first, `adjust`).
 
 Algorithm code only: what happens is reported to a `MissionObserver`
 (`robot.mission.observer`); `robot.mission.mission.run_mission` runs the rounds. Frames: world SE(2) poses (x, y, theta), metres, radians.
@@ -970,8 +971,10 @@ class AdaptiveMission:
         those a fix posed), after `grow_tracks` has added the photos fixed since its last call
         to the localiser's tracks: PnP's map grows wherever the robot looked and knew where it
         was, not only at its goals (apartment 7's first-round map, grown so, gave 8 level
-        fixes in the next round's 96 photos instead of 2). Then re-pose by SfM when PnP keeps
-        failing, even in a round that reached no goal (the robot is most lost there)."""
+        fixes in the next round's 96 photos instead of 2). With `bundle`, the photos are
+        adjusted first (`adjust`) and the new photos' tracks meshed on the adjusted poses.
+        Then re-pose by SfM when PnP keeps failing, even in a round that reached no goal (the
+        robot is most lost there)."""
         started = time.perf_counter()
         self.grow_tracks()
         if self.adjust():
