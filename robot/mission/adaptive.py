@@ -243,7 +243,9 @@ class AdaptiveConfig:
     p95's median 16.0 -> 10.6 cm (worst 41.6 -> 39.5), lost photos 864 -> 599; but its rule
     also asked for a median <= 5 cm on 12 worlds (11), 27 rooms (25), 62 goals given up at
     most (67) and seconds up 20 % at most (median +47 %: the adjustment and the tracks made
-    again at every rebuild, 10-30 s each on 300 photos), so it stays off."""
+    again at every rebuild, 10-30 s each on 300 photos, the solver most of it, at 100
+    iterations; `BundleConfig.max_iterations` is 10 since, a fifth to a third of the solver's
+    time for the same poses offline, not swept), so it stays off."""
     look: LookConfig | None = field(default_factory=LookConfig)
     """Before a localise photo, turn to the heading that sees the most map points SIFT can
     match (`robot.mission.look_heading`); None: photograph wherever the path left the robot."""
