@@ -154,7 +154,8 @@ def adjust_grown(cameras: dict[int, Camera], held: set[int], prior: dict[int, np
     """Bundle-adjust the photos of `cameras` {photo: Camera, world} not in `held` with their
     multi-view tracks (`view_tracks`), the `held` photos constant, each free photo's centre
     held to `prior` {photo: (3,) world m} by `position_sigma_m`. Free photos observing fewer
-    than `min_points` points, or in a block the tracks join to no held photo, stay too.
+    than `min_points` points, or in a block that shares fewer than `min_shared_points` with the
+    held photos (`_weakly_placed`), stay too.
     Returns the adjustment, or why nothing was adjusted (str): no free or no held photo,
     no tracks, or a solver that found no usable solution."""
     import pycolmap
