@@ -106,7 +106,8 @@ def mission_config(args: argparse.Namespace):
     return AdaptiveConfig(max_rounds=args.max_rounds, goals_per_round=args.goals_per_round,
                           min_gain_rad=np.radians(args.min_gain_deg), far_goals_per_round=args.far_goals,
                           retry_tilts=ASIFT_TILTS if args.retry_tilts else (), sweep_frontiers=args.sweep_frontiers,
-                          bundle=BundleConfig() if args.bundle_adjust else None, map=MapConfig(floor_spans=args.floor_spans))
+                          bundle=BundleConfig() if args.bundle_adjust else None,
+                          map=MapConfig(floor_spans=args.floor_spans))
 
 
 def random_config(args: argparse.Namespace):

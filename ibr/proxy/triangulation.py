@@ -174,9 +174,10 @@ def triangulate_views(cameras: list[Camera], features: list[Features],
 def pair_tracks(cameras: list[Camera], feats: list[Features], pairs: np.ndarray, cfg: TriangulationConfig,
                 matches=None):
     """Triangulate the epipolar-consistent SIFT matches of the given view `pairs` (P, 2)
-    with the poses fixed (`matches(i, j)`, when given, gives views i and j's matches). Returns points (N, 3), colours (N, 3) uint8, the two descriptors of
-    each point's features (2N, 128) with their owners (2N,), and the first view of each point
-    (a map a feature localiser can match against)."""
+    with the poses fixed (`matches(i, j)`, when given, gives views i and j's matches).
+    Returns points (N, 3), colours (N, 3) uint8, the two descriptors of each point's features
+    (2N, 128) with their owners (2N,), and the first view of each point (a map a feature
+    localiser can match against)."""
     pts, cols, descs, owners, first = [], [], [], [], []
     n = 0
     for i, j in pairs:
