@@ -4,12 +4,15 @@ stay in DIR (run again, a stopped sweep goes on where it stopped), then a table 
 world against the bars of a finished capture (issue 14) and how many worlds meet each, with
 the median and the worst world beside it. `--random` adds the random strategy at the same
 budget (the coverage-over-random bar); `--baseline DIR` sets another sweep's figures beside
-each world's (a change against main); `--summary-only` reads DIR without running anything."""
+each world's (a change against main); `--explore-flags` passes further flags to every mission
+(to sweep one, e.g. `--explore-flags=--bundle-adjust`); `--summary-only` reads DIR without
+running anything."""
 
 from __future__ import annotations
 
 import argparse
 import logging
+import shlex
 from pathlib import Path
 
 from ibr.errors import InputError
@@ -58,6 +61,30 @@ def comparison_table(pairs: dict) -> str:
     return "\n".join(rows)
 
 
+def explore_flags(text: str) -> list[str]:
+    """`--explore-flags`' words, checked against `ibrnav explore`'s own flags before any mission
+    runs (a typo would otherwise fail every mission alike); the flags the sweep sets itself
+    are refused."""
+    from ibrnav.cli import build_parser
+
+    words = shlex.split(text)
+    own = {"--strategy", "--seed", "--headless", "--json", "--photos", "--random-photos", "--achievable-poses",
+           "--eval-poses"}
+    if clash := sorted(own & {w.split("=")[0] for w in words}):
+        raise EvalMissionsError(f"--explore-flags {text!r}: {', '.join(clash)} is set by eval-missions itself")
+    parser = build_parser(["explore"])
+    parser.exit_on_error = False
+    for sub in parser._subparsers._group_actions[0].choices.values():
+        sub.exit_on_error = False
+    try:
+        _, unknown = parser.parse_known_args(["explore", "synthetic:office", *words])
+    except argparse.ArgumentError as e:
+        raise EvalMissionsError(f"--explore-flags {text!r}: {e}") from None
+    if unknown:
+        raise EvalMissionsError(f"--explore-flags {text!r}: not flags of `ibrnav explore`: {' '.join(unknown)}")
+    return words
+
+
 def run(args: argparse.Namespace) -> int:
     from robot.mission.sweep import compare, load_reports, mission_name, parse_worlds, run_sweep, summarise
 
@@ -68,10 +95,11 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if args.baseline and not Path(args.baseline).is_dir():
         raise EvalMissionsError(f"--baseline {args.baseline}: no such folder (a folder an earlier sweep wrote)")
+    extra = explore_flags(args.explore_flags)
     failed = []
     if not args.summary_only:
         options = ["--photos", str(args.photos), "--random-photos", str(args.random_photos),
-                   "--achievable-poses", str(args.achievable_poses), "--eval-poses", str(args.eval_poses)]
+                   "--achievable-poses", str(args.achievable_poses), "--eval-poses", str(args.eval_poses), *extra]
         strategies = ("adaptive", "random") if args.random else ("adaptive",)
         log.info(f"{len(worlds) * len(strategies)} missions, {args.jobs} at a time, into {out}")
         failed = run_sweep(worlds, out, options, args.jobs, strategies, args.timeout)
@@ -105,6 +133,9 @@ def register(subparsers) -> None:
     e.add_argument("--random", action="store_true", help="also the random strategy at the same budget")
     e.add_argument("--achievable-poses", type=int, default=2000, help="explore's --achievable-poses (0: none)")
     e.add_argument("--eval-poses", type=int, default=50, help="explore's --eval-poses (0: none)")
+    e.add_argument("--explore-flags", default="", help="further `ibrnav explore` flags for every mission, as one "
+                   "string (e.g. --explore-flags=--bundle-adjust); a folder's missions are not run again, so "
+                   "give each setting its own --out")
     e.add_argument("--timeout", type=float, default=3000.0, help="seconds after which a mission is stopped")
     e.add_argument("--baseline", default=None, help="another sweep's folder, set beside this one")
     e.add_argument("--summary-only", action="store_true", help="read --out's reports without running a mission")

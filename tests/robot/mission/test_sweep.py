@@ -95,6 +95,22 @@ def test_eval_missions_reads_a_folder_and_names_a_bad_one(tmp_path, capsys):
     assert "office_0.json: not an explore report" in capsys.readouterr().err
 
 
+def test_explore_flags_reach_every_mission_and_a_bad_one_runs_none(tmp_path, capsys, monkeypatch):
+    import robot.mission.sweep as sweep
+
+    seen = []
+    monkeypatch.setattr(sweep, "run_sweep", lambda worlds, out, options, *a, **k: seen.append(options) or [])
+    (tmp_path / "office_0.json").write_text(json.dumps(_report()))
+    args = ["eval-missions", "--worlds", "office:0", "--out", str(tmp_path)]
+    assert main([*args, "--explore-flags=--bundle-adjust --max-rounds 3"]) == 0
+    assert seen[0][-3:] == ["--bundle-adjust", "--max-rounds", "3"] and "--photos" in seen[0]
+    for flags, says in [("--bundel-adjust", "not flags of `ibrnav explore`: --bundel-adjust"),
+                        ("--max-rounds x", "invalid int value"), ("--seed 3", "--seed is set by eval-missions")]:
+        assert main([*args, f"--explore-flags={flags}"]) == 2
+        assert says in capsys.readouterr().err
+    assert len(seen) == 1
+
+
 def test_a_real_sweep_of_one_small_mission(tmp_path, capsys):
     """`ibrnav eval-missions` runs `ibrnav explore` and reads its real report: every figure the
     bars read is there (a key explore renamed would read as None here), the random arm beside it."""
