@@ -5,8 +5,9 @@ world against the bars of a finished capture (issue 14) and how many worlds meet
 the median and the worst world beside it. `--random` adds the random strategy at the same
 budget (the coverage-over-random bar); `--baseline DIR` sets another sweep's figures beside
 each world's (a change against main); `--explore-flags` passes further flags to every mission
-(to sweep one, e.g. `--explore-flags=--bundle-adjust`); `--summary-only` reads DIR without
-running anything."""
+(to sweep one, e.g. `--explore-flags=--bundle-adjust`); `--mission-seed-offset K` seeds each
+mission's own draws K from its world's (a second run of the same worlds, into another DIR);
+`--summary-only` reads DIR without running anything."""
 
 from __future__ import annotations
 
@@ -102,14 +103,16 @@ def run(args: argparse.Namespace) -> int:
                    "--achievable-poses", str(args.achievable_poses), "--eval-poses", str(args.eval_poses), *extra]
         strategies = ("adaptive", "random") if args.random else ("adaptive",)
         log.info(f"{len(worlds) * len(strategies)} missions, {args.jobs} at a time, into {out}")
-        failed = run_sweep(worlds, out, options, args.jobs, strategies, args.timeout)
+        failed = run_sweep(worlds, out, options, args.jobs, strategies, args.timeout,
+                           seed_offset=args.mission_seed_offset)
     elif not out.is_dir():
         raise EvalMissionsError(f"{out}: no such folder (run the sweep first, without --summary-only)")
     wanted = {mission_name(w, s) for w, s in worlds}
     reports = {n: r for n, r in load_reports(out).items() if n.split(".")[0] in wanted}
     if not any("." not in n for n in reports):
         raise EvalMissionsError(f"{out}: none of the {len(wanted)} missions asked for has a report")
-    summary = {**summarise(reports), "jobs": args.jobs, "failed": failed}
+    summary = {**summarise(reports), "jobs": args.jobs, "mission_seed_offset": args.mission_seed_offset,
+               "failed": failed}
     print(table(summary))
     if args.baseline:
         summary["baseline"] = {"folder": str(args.baseline), "missions": compare(load_reports(Path(args.baseline)),
@@ -136,6 +139,9 @@ def register(subparsers) -> None:
     e.add_argument("--explore-flags", default="", help="further `ibrnav explore` flags for every mission, as one "
                    "string (e.g. --explore-flags=--bundle-adjust); a folder's missions are not run again, so "
                    "give each setting its own --out")
+    e.add_argument("--mission-seed-offset", type=int, default=0, help="seed each mission's own draws (start, "
+                   "noise, planner) this far from its world's seed: another offset, into another --out, is a "
+                   "second run of the same worlds (one run per world cannot tell a change from the draw)")
     e.add_argument("--timeout", type=float, default=3000.0, help="seconds after which a mission is stopped")
     e.add_argument("--baseline", default=None, help="another sweep's folder, set beside this one")
     e.add_argument("--summary-only", action="store_true", help="read --out's reports without running a mission")

@@ -6,7 +6,9 @@ change to what the robot does moves its whole path, and single worlds swing by t
 centimetres either way (the closing notes of issue 14). `run_sweep` runs `ibrnav explore`
 once per world, a child process each, `jobs` at a time, and keeps each mission's JSON and log
 in one folder; a sweep stopped half way runs again from where it stopped (a world whose JSON
-is there is not run again). `mission_bars` reads one mission's report against the bars of
+is there is not run again). A mission's own draws (start, noise, planner) are seeded by its
+world's seed plus an offset: a sweep at another offset, into another folder, is a second
+draw of the same worlds, which tells a change's effect from the draw's. `mission_bars` reads one mission's report against the bars of
 issue 14, `summarise` counts the worlds that meet each bar and gives the median and the worst
 world of each figure, and `compare` sets two sweeps side by side (a change against main).
 
@@ -83,19 +85,23 @@ def mission_name(world: str, seed: int, strategy: str = "adaptive") -> str:
     return f"{world}_{seed}" + ("" if strategy == "adaptive" else f".{strategy}")
 
 
-def explore_command(world: str, seed: int, strategy: str, out: Path, options: list[str]) -> list[str]:
-    """The `ibrnav explore` command line of one mission (`options`: further explore flags)."""
+def explore_command(world: str, seed: int, strategy: str, out: Path, options: list[str],
+                    seed_offset: int = 0) -> list[str]:
+    """The `ibrnav explore` command line of one mission (`options`: further explore flags).
+    The world is `seed`'s; the mission's own draws (start pose, noise, planner) come from
+    `seed + seed_offset`: another offset is another run of the same worlds."""
     return [sys.executable, "-m", "ibrnav", "explore", f"synthetic:{world}?seed={seed}", "--strategy", strategy,
-            "--seed", str(seed), "--headless", "--json", str(out / f"{mission_name(world, seed, strategy)}.json"),
-            *options]
+            "--seed", str(seed + seed_offset), "--headless", "--json",
+            str(out / f"{mission_name(world, seed, strategy)}.json"), *options]
 
 
 def run_sweep(worlds: list[tuple[str, int]], out: Path, options: list[str], jobs: int = 1,
-              strategies: tuple[str, ...] = ("adaptive",), timeout_s: float = 3000.0, command=explore_command
-              ) -> list[str]:
+              strategies: tuple[str, ...] = ("adaptive",), timeout_s: float = 3000.0, command=explore_command,
+              seed_offset: int = 0) -> list[str]:
     """Run every mission of `worlds` x `strategies` not yet in `out` (no JSON there), `jobs` at
-    once, each with its log in `out`/NAME.log; a mission past `timeout_s` is stopped. Returns
-    the names of the missions that failed (non-zero exit or no JSON), each logged with its log."""
+    once, each with its log in `out`/NAME.log, its own draws seeded `seed_offset` after its
+    world's (`explore_command`); a mission past `timeout_s` is stopped. Returns the names of
+    the missions that failed (non-zero exit or no JSON), each logged with its log."""
     out.mkdir(parents=True, exist_ok=True)
     todo = [(w, s, st) for w, s in worlds for st in strategies
             if not (out / f"{mission_name(w, s, st)}.json").exists()]
@@ -106,8 +112,8 @@ def run_sweep(worlds: list[tuple[str, int]], out: Path, options: list[str], jobs
         name, t0 = mission_name(world, seed, strategy), time.perf_counter()
         with open(out / f"{name}.log", "w") as f:
             try:
-                rc = subprocess.run(command(world, seed, strategy, out, options), stdout=f, stderr=subprocess.STDOUT,
-                                    timeout=timeout_s).returncode
+                rc = subprocess.run(command(world, seed, strategy, out, options, seed_offset), stdout=f,
+                                    stderr=subprocess.STDOUT, timeout=timeout_s).returncode
             except subprocess.TimeoutExpired:
                 rc = -1
         return name, rc, time.perf_counter() - t0

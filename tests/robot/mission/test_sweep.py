@@ -6,11 +6,13 @@ from __future__ import annotations
 
 import json
 import sys
+from pathlib import Path
 
 import pytest
 
 from ibrnav.cli import main
-from robot.mission.sweep import compare, load_reports, mission_bars, parse_worlds, run_sweep, summarise
+from robot.mission.sweep import (compare, explore_command, load_reports, mission_bars, parse_worlds, run_sweep,
+                                 summarise)
 
 
 def _report(median=0.03, p95=0.12, heading=0.5, scale=0.004, visited=("a", "b"), rooms=("a", "b"), reached=45,
@@ -56,11 +58,12 @@ def test_a_sweep_counts_the_worlds_that_meet_each_bar_and_names_the_worst():
     assert pairs["office_1"]["p95_m"] == [0.10, 0.08] and pairs["office_1"]["lost_photos"] == [10, 4]
 
 
-def _fake_explore(world, seed, strategy, out, options):
+def _fake_explore(world, seed, strategy, out, options, seed_offset=0):
     """A stand-in for `ibrnav explore`: writes a report, or fails for office 1."""
     name = f"{world}_{seed}" + ("" if strategy == "adaptive" else f".{strategy}")
     code = (f"import json, sys; print('mission {name}'); sys.exit(3) if {world == 'office' and seed == 1} else "
-            f"json.dump({{'strategy': '{strategy}', 'coverage': 0.5, 'options': {options!r}}}, "
+            f"json.dump({{'strategy': '{strategy}', 'coverage': 0.5, 'options': {options!r}, "
+            f"'mission_seed': {seed + seed_offset}}}, "
             f"open(r'{out / (name + '.json')}', 'w'))")
     return [sys.executable, "-c", code]
 
@@ -73,10 +76,18 @@ def test_the_runner_keeps_each_mission_and_goes_on_where_it_stopped(tmp_path):
     assert "mission office_1" in (tmp_path / "office_1.log").read_text()
     reports = load_reports(tmp_path)
     assert set(reports) == {"apartment_0", "apartment_1", "apartment_0.random", "apartment_1.random"}
-    assert reports["apartment_0"]["options"] == ["--photos", "30"]
+    assert reports["apartment_0"]["options"] == ["--photos", "30"] and reports["apartment_1"]["mission_seed"] == 1
     (tmp_path / "apartment_1.json").write_text(json.dumps({"strategy": "adaptive", "coverage": 0.9}))
     run_sweep(worlds, tmp_path, [], command=_fake_explore)  # office 1 tried again; the others are kept
     assert load_reports(tmp_path)["apartment_1"]["coverage"] == 0.9
+    run_sweep(worlds, tmp_path / "again", [], command=_fake_explore, seed_offset=100)  # a second draw
+    assert load_reports(tmp_path / "again")["apartment_1"]["mission_seed"] == 101
+
+
+def test_a_mission_draws_from_its_own_seed_and_its_world_from_the_worlds():
+    cmd = explore_command("apartment", 3, "adaptive", Path("out"), ["--photos", "30"], seed_offset=100)
+    assert cmd[cmd.index("explore") + 1] == "synthetic:apartment?seed=3" and cmd[cmd.index("--seed") + 1] == "103"
+    assert cmd[-2:] == ["--photos", "30"] and cmd[cmd.index("--json") + 1] == str(Path("out") / "apartment_3.json")
 
 
 def test_eval_missions_reads_a_folder_and_names_a_bad_one(tmp_path, capsys):
@@ -104,6 +115,7 @@ def test_explore_flags_reach_every_mission_and_a_bad_one_runs_none(tmp_path, cap
     args = ["eval-missions", "--worlds", "office:0", "--out", str(tmp_path)]
     assert main([*args, "--explore-flags=--bundle-adjust --max-rounds 3"]) == 0
     assert seen[0][-3:] == ["--bundle-adjust", "--max-rounds", "3"] and "--photos" in seen[0]
+    assert json.loads((tmp_path / "summary.json").read_text())["mission_seed_offset"] == 0
     for flags, says in [("--bundel-adjust", "not flags of `ibrnav explore`: --bundel-adjust"),
                         ("--max-rounds x", "invalid int value"), ("--seed 3", "--seed is set by eval-missions")]:
         assert main([*args, f"--explore-flags={flags}"]) == 2
