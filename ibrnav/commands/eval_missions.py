@@ -66,19 +66,20 @@ def explore_flags(text: str) -> list[str]:
     """`--explore-flags`' words, checked against `ibrnav explore`'s own flags before any mission
     runs (a typo would otherwise fail every mission alike); the flags the sweep sets itself
     are refused."""
-    from ibrnav.cli import build_parser
+    from ibrnav.cli import Parser
+    from ibrnav.commands import explore
 
     words = shlex.split(text)
     own = {"--strategy", "--seed", "--headless", "--json", "--photos", "--random-photos", "--achievable-poses",
            "--eval-poses"}
     if clash := sorted(own & {w.split("=")[0] for w in words}):
         raise EvalMissionsError(f"--explore-flags {text!r}: {', '.join(clash)} is set by eval-missions itself")
-    parser = build_parser(["explore"])
+    subparsers = Parser(prog="ibrnav").add_subparsers()
+    explore.register(subparsers)
+    parser = subparsers.choices["explore"]
     parser.exit_on_error = False
-    for sub in parser._subparsers._group_actions[0].choices.values():
-        sub.exit_on_error = False
     try:
-        _, unknown = parser.parse_known_args(["explore", "synthetic:office", *words])
+        _, unknown = parser.parse_known_args(["synthetic:office", *words])
     except argparse.ArgumentError as e:
         raise EvalMissionsError(f"--explore-flags {text!r}: {e}") from None
     if unknown:

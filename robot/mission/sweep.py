@@ -8,9 +8,10 @@ once per world, a child process each, `jobs` at a time, and keeps each mission's
 in one folder; a sweep stopped half way runs again from where it stopped (a world whose JSON
 is there is not run again). A mission's own draws (start, noise, planner) are seeded by its
 world's seed plus an offset: a sweep at another offset, into another folder, is a second
-draw of the same worlds, which tells a change's effect from the draw's. `mission_bars` reads one mission's report against the bars of
-issue 14, `summarise` counts the worlds that meet each bar and gives the median and the worst
-world of each figure, and `compare` sets two sweeps side by side (a change against main).
+draw of the same worlds, which tells a change's effect from the draw's. `mission_bars` reads
+one mission's report against the bars of issue 14, `summarise` counts the worlds that meet
+each bar and gives the median and the worst world of each figure, and `compare` sets two
+sweeps side by side (a change against main).
 
 Seconds: missions sharing the 2 cores take longer (apartment 6: 210 s alone, 423 s beside
 another mission), so the summary records how many ran at once.
