@@ -62,22 +62,21 @@ def comparison_table(pairs: dict) -> str:
     return "\n".join(rows)
 
 
-def explore_flags(text: str) -> list[str]:
+def explore_flags(text: str, own: set[str]) -> list[str]:
     """`--explore-flags`' words, checked against `ibrnav explore`'s own flags before any mission
-    runs (a typo would otherwise fail every mission alike); the flags the sweep sets itself
-    are refused."""
+    runs (a typo would otherwise fail every mission alike); the flags in `own`, which the
+    sweep sets itself, are refused, and so are abbreviations (written after the sweep's own,
+    `--phot 3` would silently override its `--photos`)."""
     from ibrnav.cli import Parser
     from ibrnav.commands import explore
 
     words = shlex.split(text)
-    own = {"--strategy", "--seed", "--headless", "--json", "--photos", "--random-photos", "--achievable-poses",
-           "--eval-poses"}
     if clash := sorted(own & {w.split("=")[0] for w in words}):
         raise EvalMissionsError(f"--explore-flags {text!r}: {', '.join(clash)} is set by eval-missions itself")
     subparsers = Parser(prog="ibrnav").add_subparsers()
     explore.register(subparsers)
     parser = subparsers.choices["explore"]
-    parser.exit_on_error = False
+    parser.exit_on_error, parser.allow_abbrev = False, False
     try:
         _, unknown = parser.parse_known_args(["synthetic:office", *words])
     except argparse.ArgumentError as e:
@@ -88,7 +87,8 @@ def explore_flags(text: str) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from robot.mission.sweep import compare, load_reports, mission_name, parse_worlds, run_sweep, summarise
+    from robot.mission.sweep import (compare, explore_command, load_reports, mission_name, parse_worlds, run_sweep,
+                                     summarise)
 
     try:
         worlds = parse_worlds(args.worlds)
@@ -97,11 +97,12 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if args.baseline and not Path(args.baseline).is_dir():
         raise EvalMissionsError(f"--baseline {args.baseline}: no such folder (a folder an earlier sweep wrote)")
-    extra = explore_flags(args.explore_flags)
+    options = ["--photos", str(args.photos), "--random-photos", str(args.random_photos),
+               "--achievable-poses", str(args.achievable_poses), "--eval-poses", str(args.eval_poses)]
+    own = {w for w in explore_command(*worlds[0], "adaptive", out, options) if w.startswith("--")}
+    options += explore_flags(args.explore_flags, own)
     failed = []
     if not args.summary_only:
-        options = ["--photos", str(args.photos), "--random-photos", str(args.random_photos),
-                   "--achievable-poses", str(args.achievable_poses), "--eval-poses", str(args.eval_poses), *extra]
         strategies = ("adaptive", "random") if args.random else ("adaptive",)
         log.info(f"{len(worlds) * len(strategies)} missions, {args.jobs} at a time, into {out}")
         failed = run_sweep(worlds, out, options, args.jobs, strategies, args.timeout,

@@ -117,7 +117,8 @@ def test_explore_flags_reach_every_mission_and_a_bad_one_runs_none(tmp_path, cap
     assert seen[0][-3:] == ["--bundle-adjust", "--max-rounds", "3"] and "--photos" in seen[0]
     assert json.loads((tmp_path / "summary.json").read_text())["mission_seed_offset"] == 0
     for flags, says in [("--bundel-adjust", "not flags of `ibrnav explore`: --bundel-adjust"),
-                        ("--max-rounds x", "invalid int value"), ("--seed 3", "--seed is set by eval-missions")]:
+                        ("--max-rounds x", "invalid int value"), ("--seed 3", "--seed is set by eval-missions"),
+                        ("--phot 3", "not flags of `ibrnav explore`: --phot")]:
         assert main([*args, f"--explore-flags={flags}"]) == 2
         assert says in capsys.readouterr().err
     assert len(seen) == 1
