@@ -53,12 +53,13 @@ def table(summary: dict) -> str:
 
 def comparison_table(pairs: dict) -> str:
     """Markdown table of `sweep.compare`: baseline → this sweep for each mission."""
-    rows = ["| mission | med cm | p95 cm | lost photos | cov | rooms | given up % | s |", "|" + "---|" * 8]
+    rows = ["| mission | med cm | p95 cm | lost photos | cov | rooms | given up % | obstacles met | s |",
+            "|" + "---|" * 9]
     for name, c in pairs.items():
         arrow = lambda k, f: " → ".join("—" if v is None else f(v) for v in c[k])  # noqa: E731
         rows.append(f"| {name} | {arrow('median_m', _cm)} | {arrow('p95_m', _cm)} | {arrow('lost_photos', str)} | "
                     f"{arrow('coverage', '{:.3f}'.format)} | {arrow('rooms', str)} | {arrow('given_up', _cm)} | "
-                    f"{arrow('seconds', '{:.0f}'.format)} |")
+                    f"{arrow('obstacles', str)} | {arrow('seconds', '{:.0f}'.format)} |")
     return "\n".join(rows)
 
 

@@ -60,6 +60,7 @@ def run(args: argparse.Namespace) -> int:
               "random_photos": sum(p.stage == "random" for p in result.photos),
               "path_length_m": result.path_m, "coverage_curve": [list(p) for p in obs.coverage_curve],
               "rounds": result.rounds, "goals_reached": len(result.goals), "goals_given_up": result.given_up,
+              "obstacles_met": result.obstacles_met,
               "pnp_fixes": result.fixes, "pnp_tilted_fixes": result.tilted_fixes, "pnp_failures": result.failed_fixes,
               "pnp_failure_reasons": result.failure_reasons,
               "stopped_because": result.stopped_because, "stop_reason": result.stop_reason,

@@ -121,6 +121,7 @@ class SessionJournal(MissionJournal):
                  "failure_reasons": dict(mission.failure_reasons), "tilted_fixes": mission.tilted_fixes,
                  "given_up": mission.given_up, "goals": mission.goals_reached,
                  "given_up_goals": mission.given_up_goals, "bumps": mission.bumps,
+                 "obstacles_met": dict(mission.obstacles_met),
                  "unfixed": sorted(mission.unfixed), "failed_at_repose": mission.failed_at_repose,
                  "reposed": sorted(mission.reposed), "stepped_from": mission.stepped_from,
                  "trail": np.array(mission.trail).reshape(-1, 2, 2),

@@ -45,6 +45,8 @@ class MissionResult:
     rounds: int = 0
     goals: list = field(default_factory=list)
     given_up: int = 0
+    obstacles_met: dict[str, int] = field(default_factory=dict)
+    """Drives a bumper or a stall stopped, by the drive (`adaptive.OBSTACLE_DRIVES`)."""
     fixes: int = 0
     tilted_fixes: int = 0
     """Of `fixes`, those only the tilted retry found (`AdaptiveConfig.retry_tilts`)."""
@@ -243,6 +245,7 @@ def _resume_adaptive(robot: Robot, state: dict, config: AdaptiveConfig, rng: np.
     mission.goals_reached = [np.asarray(g, float) for g in state["goals"]]
     mission.given_up_goals = [np.asarray(g, float) for g in state.get("given_up_goals", [])]
     mission.bumps = [np.asarray(b, float) for b in state.get("bumps", [])]
+    mission.obstacles_met.update(state.get("obstacles_met", {}))
     mission.trail = [np.asarray(s, float) for s in state.get("trail", [])]
     mission.sonar_readings = [np.asarray(s, float) for s in state.get("sonar_readings", [])]
     if state.get("stepped_from") is not None:  # the last round ended on a stereo pair's side step
@@ -279,6 +282,7 @@ def run_mission(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budge
     log.info(f"the capture's model: {len(result.robot_map.mesh.faces)} faces over {len(mission.map.points)} map "
              f"points (the map's proxy: {len(mission.map.mesh.faces)})")
     result.goals, result.given_up = mission.goals_reached, mission.given_up
+    result.obstacles_met = dict(mission.obstacles_met)
     result.fixes, result.failed_fixes, result.tilted_fixes = mission.fixes, mission.failed, mission.tilted_fixes
     result.failure_reasons = dict(mission.failure_reasons)
     tried = mission.fixes + mission.failed

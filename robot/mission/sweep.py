@@ -148,7 +148,8 @@ def load_reports(folder: Path) -> dict[str, dict]:
 
 def mission_figures(report: dict) -> dict:
     """The figures the bars read from one adaptive mission's explore report, and its lost photos
-    (> 15 cm, which `compare` sets side by side); None where the report has none (a world
+    (> 15 cm) and obstacles met (its drives a bumper stopped), which `compare` sets side by
+    side; None where the report has none (a world
     without rooms, a mission that never localised)."""
     loc = report.get("localization_error_m") or {}
     reached, given_up = report.get("goals_reached") or 0, report.get("goals_given_up") or 0
@@ -161,7 +162,8 @@ def mission_figures(report: dict) -> dict:
             "all_rooms": None if not rooms else set(report.get("rooms_visited") or []) >= set(rooms),
             "seconds": report.get("seconds"), "coverage": report.get("coverage"),
             "achievable": report.get("achievable_coverage"), "stopped_because": report.get("stopped_because"),
-            "lost_photos": (report.get("lost_photos") or {}).get("lost")}
+            "lost_photos": (report.get("lost_photos") or {}).get("lost"),
+            "obstacles": sum(report["obstacles_met"].values()) if "obstacles_met" in report else None}
 
 
 def mission_bars(report: dict, random_report: dict | None = None, bars: Bars = Bars()) -> dict[str, bool | None]:
@@ -214,5 +216,6 @@ def compare(before: dict[str, dict], after: dict[str, dict]) -> dict[str, dict]:
             continue
         fb, fa = mission_figures(b), mission_figures(a)
         out[name] = {k: [fb[k], fa[k]]
-                     for k in ("median_m", "p95_m", "lost_photos", "coverage", "rooms", "given_up", "seconds")}
+                     for k in ("median_m", "p95_m", "lost_photos", "coverage", "rooms", "given_up", "obstacles",
+                               "seconds")}
     return out

@@ -66,6 +66,19 @@ def test_bundle_adjustment_is_off_unless_turned_on():
     assert mission_config(parser.parse_args(["--bundle-adjust"])).bundle == BundleConfig()
 
 
+def test_keeping_off_met_surfaces_is_off_unless_turned_on():
+    """By default the robot keeps off the surfaces its ultrasonic met only at its goals;
+    `--keep-off-surfaces` keeps it off them on its way too."""
+    import argparse
+
+    from ibrnav.args import add_mission_args, mission_config
+
+    parser = argparse.ArgumentParser()
+    add_mission_args(parser, 261)
+    assert not mission_config(parser.parse_args([])).keep_off_surfaces
+    assert mission_config(parser.parse_args(["--keep-off-surfaces"])).keep_off_surfaces
+
+
 def test_explore_runs_with_a_seeded_spec(tmp_path):
     report = random_explore(tmp_path, "synthetic:office?seed=3", 3, 0)
     assert report["scene"] == "synthetic:office?seed=3" and report["photos"] == 3
@@ -85,6 +98,7 @@ def test_explore_in_an_apartment_reports_rooms_and_why_it_stopped(tmp_path):
     assert report["model_photos_error"] is None
     assert report["localised_at_end"] is None  # no filter in a random capture
     assert report["pnp_fixes"] == report["pnp_failures"] == 0 and report["pnp_failure_reasons"] == {}
+    assert report["obstacles_met"] == {}  # nor its drives
     assert report["start_anchored"] is None and report["first_map_scale_error"] is None  # nor a first map
     assert report["coverage"] <= report["achievable_coverage"] <= 1
 

@@ -73,6 +73,8 @@ def test_demo_killed_twice_resumes_to_the_planned_capture(tmp_path):
     rounds = [s["rounds"] for s in adaptive]
     assert rounds == list(range(len(rounds))) and len(rounds) >= 2  # each round once (more when goals are given up)
     assert all(sum(s["failure_reasons"].values()) == s["failed"] for s in adaptive)  # by reason, across resumes
+    met = [sum(s["obstacles_met"].values()) for s in adaptive]
+    assert met == sorted(met)  # counted on across the resumes, never from 0 again
     assert len(load_session_scene(folder).views) == len(photos)
     again = demo(folder)
     assert again.returncode == 0 and "already finished" in again.stdout

@@ -16,12 +16,12 @@ from robot.mission.sweep import (compare, explore_command, load_reports, mission
 
 
 def _report(median=0.03, p95=0.12, heading=0.5, scale=0.004, visited=("a", "b"), rooms=("a", "b"), reached=45,
-            given_up=3, seconds=200.0, coverage=0.60, achievable=0.65, lost=10):
+            given_up=3, seconds=200.0, coverage=0.60, achievable=0.65, lost=10, obstacles=(20, 5, 2)):
     return {"strategy": "adaptive", "localization_error_m": {"median": median, "p95": p95},
             "heading_error_deg": {"median": heading}, "map_scale_error": scale, "rooms_visited": list(visited),
             "rooms": list(rooms), "goals_reached": reached, "goals_given_up": given_up, "seconds": seconds,
             "coverage": coverage, "achievable_coverage": achievable, "stopped_because": "budget",
-            "lost_photos": {"lost": lost}}
+            "lost_photos": {"lost": lost}, "obstacles_met": dict(zip(("path", "side step", "recovery"), obstacles))}
 
 
 def test_a_worlds_spec_names_each_world_and_seed():
@@ -54,8 +54,9 @@ def test_a_sweep_counts_the_worlds_that_meet_each_bar_and_names_the_worst():
     assert s["bars_met"]["p95"] == {"met": 1, "of": 2} and s["bars_met"]["seconds"] == {"met": 1, "of": 2}
     assert s["bars_met"]["over_random"] == {"met": 1, "of": 1}
     assert s["spread"]["p95_m"] == {"median": pytest.approx(0.20), "worst": 0.30, "worst_mission": "apartment_0"}
-    pairs = compare(reports, {**reports, "office_1": _report(p95=0.08, lost=4)})
+    pairs = compare(reports, {**reports, "office_1": _report(p95=0.08, lost=4, obstacles=(3, 1, 0))})
     assert pairs["office_1"]["p95_m"] == [0.10, 0.08] and pairs["office_1"]["lost_photos"] == [10, 4]
+    assert pairs["office_1"]["obstacles"] == [27, 4]
 
 
 def _fake_explore(world, seed, strategy, out, options, seed_offset=0):
