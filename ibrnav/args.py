@@ -91,7 +91,7 @@ def add_mission_args(p: argparse.ArgumentParser, photos_default: int) -> None:
     p.add_argument("--keep-off-surfaces", action="store_true",
                    help="keep the robot off the surfaces its ultrasonic met on its paths, side steps and "
                    "recoveries, not only at its goals (off by default: it took one apartment's bumps from 85 "
-                   "to 25, but over 15 worlds the goals given up did not fall beyond main's own spread)")
+                   "to 25, but over 15 worlds the goals given up were 76 against main's 56 and 74)")
     p.add_argument("--floor-spans", action="store_true",
                    help="the first map is placed by the floor's measure of each distance between two stops, its "
                    "stops free on the rig, not scaled by one floor factor (off by default: first maps within 1 %% "
