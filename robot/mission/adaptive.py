@@ -902,9 +902,9 @@ class AdaptiveMission:
         return motion
 
     def _recover(self, motion) -> None:
-        """Back off an obstacle, turn away and drive a little off the path: to a random side,
-        the other one when only that drive keeps clear of the ultrasonic's surfaces
-        (`_flip_side`)."""
+        """Back off an obstacle, turn away and drive a little off the path, to a random side
+        (with `keep_off_surfaces`, the other one when only that drive keeps clear of the
+        ultrasonic's surfaces, `_flip_side`)."""
         c = self.config
         back = self._drive(c.backoff_m if motion.bumper_rear else -c.backoff_m)
         turn = self.rng.uniform(np.pi / 4, np.pi / 2) * self.rng.choice([-1.0, 1.0])
@@ -991,9 +991,10 @@ class AdaptiveMission:
 
     def capture_at(self, goal: np.ndarray, budget: int) -> list[MissionPhoto]:
         """A stereo pair at the goal (at most `budget` photos): one photo facing the goal
-        heading, then one after a side step of `stereo_baseline_m` (to the side that keeps
-        clear of the ultrasonic's surfaces, `_flip_side`; backing off when it bumps) and a
-        look to localise (`localise_here`), so what the goal sees is seen from two directions."""
+        heading, then one after a side step of `stereo_baseline_m` to its left (with
+        `keep_off_surfaces`, to its right when only that keeps clear of the ultrasonic's
+        surfaces, `_flip_side`; backing off when it bumps) and a look to localise
+        (`localise_here`), so what the goal sees is seen from two directions."""
         c = self.config
         self._face(goal[2])
         out = [self.take_photo("goal")]
