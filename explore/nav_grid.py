@@ -67,6 +67,12 @@ class NavGrid:
         ij = np.asarray(ij, dtype=np.float64)
         return self.origin + (ij[..., ::-1] + 0.5) * self.cell_m
 
+    def centres(self) -> np.ndarray:
+        """World xy (H * W, 2) metres of every cell's centre, row by row (reshape a per-cell
+        result to `shape`)."""
+        H, W = self.shape
+        return self.cell_to_world(np.indices((H, W)).reshape(2, -1).T)
+
     def cost_at(self, xy: np.ndarray) -> np.ndarray:
         """K at world points (..., 2) metres, inf outside the grid (e.g. to drop candidate
         goals that stand on furniture below the camera plane: cost_at(xy) <= max_cost)."""

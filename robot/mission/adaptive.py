@@ -787,7 +787,7 @@ class AdaptiveMission:
         seen = self._seen_free
         if seen is not None:
             H, W = grid.shape
-            xy = grid.cell_to_world(np.indices((H, W)).reshape(2, -1).T)
+            xy = grid.centres()
             free_cells = seen(np.c_[xy, np.full(len(xy), self.cam_height)], self.config.grid_seen_margin_m)
             heard = (self._sonar.is_free(xy) if self._sonar is not None else np.zeros(len(xy), bool)).reshape(H, W)
             unseen = np.inf if strict else np.maximum(grid.cost, self.config.max_path_cost)
@@ -814,7 +814,7 @@ class AdaptiveMission:
         if self._sonar is None:
             return grid
         H, W = grid.shape
-        xy = grid.cell_to_world(np.indices((H, W)).reshape(2, -1).T)
+        xy = grid.centres()
         near = ~self.clear_of_surfaces(xy).reshape(H, W)
         return replace(grid, cost=np.where(near, np.maximum(grid.cost, self.config.max_path_cost), grid.cost))
 
@@ -828,7 +828,7 @@ class AdaptiveMission:
         if not contacts:
             return grid
         H, W = grid.shape
-        xy = grid.cell_to_world(np.indices((H, W)).reshape(2, -1).T)
+        xy = grid.centres()
         d = np.linalg.norm(xy[:, None] - np.asarray(contacts)[None], axis=2).min(axis=1)
         near = d.reshape(H, W) < self.config.robot_radius_m
         cost = np.maximum(grid.cost, self.config.max_path_cost) if dear else np.inf
@@ -843,7 +843,7 @@ class AdaptiveMission:
         After a stereo pair's side step, the robot's way back to where its plan brought it
         is passable too (`_way_back`), and so are its last drives (`_on_trail`)."""
         H, W = grid.shape
-        xy = grid.cell_to_world(np.indices((H, W)).reshape(2, -1).T)
+        xy = grid.centres()
         r = self.config.robot_radius_m + 2 * self.spread()
         here = (np.linalg.norm(xy - self.body.est.pose[:2], axis=1) < r).reshape(H, W)
         cost = np.where(here & np.isinf(grid.cost), self.config.max_path_cost, grid.cost)

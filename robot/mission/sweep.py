@@ -149,8 +149,8 @@ def load_reports(folder: Path) -> dict[str, dict]:
 def mission_figures(report: dict) -> dict:
     """The figures the bars read from one adaptive mission's explore report, and its lost photos
     (> 15 cm) and obstacles met (its drives a bumper stopped), which `compare` sets side by
-    side; None where the report has none (a world
-    without rooms, a mission that never localised)."""
+    side; None where the report has none (a world without rooms, a mission that never
+    localised, a report from before `obstacles_met`)."""
     loc = report.get("localization_error_m") or {}
     reached, given_up = report.get("goals_reached") or 0, report.get("goals_given_up") or 0
     rooms = report.get("rooms")

@@ -116,6 +116,13 @@ def test_nav_grid_cost_peaks_at_point_cluster():
     assert at[0] > 0.8 and at[1] == 0.0 and at[2] == np.inf
 
 
+def test_cell_centres_lie_in_their_own_cells_row_by_row():
+    grid = NavGrid(np.array([-1.0, 2.0]), 0.5, np.zeros((3, 4)), np.zeros((3, 4)))
+    xy = grid.centres()
+    assert xy.shape == (12, 2) and xy[0].tolist() == [-0.75, 2.25] and xy[1].tolist() == [-0.25, 2.25]
+    assert (grid.world_to_cell(xy) == np.indices((3, 4)).reshape(2, -1).T).all()
+
+
 def test_kde_is_separable_gaussian_eq1():
     score = np.zeros((21, 21))
     score[10, 10] = 9.0
