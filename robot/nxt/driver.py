@@ -144,6 +144,15 @@ class NXTBrick:
         self.link.command(P.set_output_state(port, power, mode, regulation, turn_ratio, run_state,
                                              tacho_limit, self.confirm))
 
+    def start_motors(self, states: list[tuple[int, int, int, int, int, int, int]]) -> None:
+        """SETOUTPUTSTATE for several motors, each (port, power, mode, regulation,
+        turn_ratio, run_state, tacho_limit), sent back to back: only the last asks for a
+        reply (when `confirm`), so the brick starts them a frame's transmission apart, not
+        a round trip apart (tens of ms over Bluetooth, in which the first wheel alone would
+        pivot the robot about the still one)."""
+        for i, state in enumerate(states):
+            self.link.command(P.set_output_state(*state, self.confirm and i == len(states) - 1))
+
     def get_output_state(self, port: int) -> P.OutputState:
         return P.parse_output_state(self.link.command(P.get_output_state(port)))
 
@@ -374,8 +383,8 @@ class NXTRobot:
         c, b = self.config, self.brick
         mode = P.MODE_ON | P.MODE_BRAKE | P.MODE_REGULATED
         start = self._counts()
-        for port, power in ((c.left_motor, left_power), (c.right_motor, right_power)):
-            b.set_output_state(port, power, mode, regulation, 0, P.RUN_RUNNING, deg)
+        b.start_motors([(port, power, mode, regulation, 0, P.RUN_RUNNING, deg)
+                        for port, power in ((c.left_motor, left_power), (c.right_motor, right_power))])
         t_start = last_progress_t = time.monotonic()
         last = start
         hit, stalled = [False, False], False

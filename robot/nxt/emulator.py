@@ -53,6 +53,10 @@ class EmulatorConfig:
     """LSGETSTATUS answers "pending" this many times after each LSWRITE, as the bus does."""
     image_size: tuple[int, int] = (64, 48)
     """(width, height) of the photos the simulated camera writes (px)."""
+    reply_latency_s: float = 0.0
+    """Wall-clock delay (s) before each reply goes out, while the world moves on: a
+    Bluetooth link's round trip is tens of milliseconds, long enough for a started wheel
+    to turn a good way before the next command reaches the brick."""
 
 
 @dataclass
@@ -214,6 +218,7 @@ class NXTEmulator:
                 if f.drop:
                     f.drop -= 1
                 else:
+                    time.sleep(self.config.reply_latency_s)
                     self._write(f.garbage + P.frame(reply))
                     f.garbage = b""
             if f.unplug_after is not None:

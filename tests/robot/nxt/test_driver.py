@@ -59,6 +59,20 @@ def test_drive_and_turn_odometry_follows_the_wheels(robot, emu):
     assert all(m.power == 0 for m in emu.motors)  # stopped after every motion
 
 
+def test_both_wheels_start_together_over_a_slow_link(tmp_path):
+    """Over a link with a Bluetooth-like round trip the right wheel's command must not wait
+    for the left's reply: the left wheel alone would pivot the robot about the right one
+    (about 4 cm at this round trip) and a turn in place would move it."""
+    (tmp_path / "card").mkdir()
+    slow = EmulatorConfig(time_scale=FAST.time_scale, reply_latency_s=0.03)
+    with NXTEmulator(slow, camera_dir=tmp_path / "card") as emu, \
+            NXTRobot(emu.port, CONFIG, FolderPhotoSource(emu.camera_dir), LINK) as robot:
+        robot.turn(np.pi / 2)
+        assert emu.pose[2] == pytest.approx(np.pi / 2, abs=0.03)
+        assert np.hypot(*emu.pose[:2]) < 0.005
+        assert np.allclose(robot.odometry()[:2], emu.pose[:2], atol=0.01)
+
+
 def test_every_sensor_reads_the_simulated_world(robot, emu):
     assert robot.battery_mv() == FAST.battery_mv
     assert robot.ultrasonic() == pytest.approx(2.0)  # facing +x, the wall is 2 m away
