@@ -61,7 +61,7 @@ def open_robot(args: argparse.Namespace, world, start: np.ndarray):
 def add_mission_args(p: argparse.ArgumentParser, photos_default: int) -> None:
     """--seed, --photos (the budget), --random-photos, --circle-step-deg, --max-rounds,
     --goals-per-round, --min-gain-deg, --far-goals, --retry-tilts / --no-retry-tilts,
-    --bundle-adjust, --sweep-frontiers, --keep-off-surfaces, --floor-spans."""
+    --bundle-adjust, --sweep-frontiers, --keep-off-surfaces, --floor-spans, --look-occlusion."""
     p.add_argument("--seed", type=int, default=0, help="world, noise and planner seed")
     p.add_argument("--photos", type=int, default=photos_default, help="photo budget of the model")
     p.add_argument("--random-photos", type=int, default=100, help="photos of the random-exploration stage")
@@ -92,6 +92,9 @@ def add_mission_args(p: argparse.ArgumentParser, photos_default: int) -> None:
                    help="keep the robot off the surfaces its ultrasonic met on its paths, side steps and "
                    "recoveries, not only at its goals (off by default: it took one apartment's bumps from 85 "
                    "to 25, but over 15 worlds the goals given up were 76 against main's 56 and 74)")
+    p.add_argument("--look-occlusion", action="store_true",
+                   help="before a localise photo the robot faces the most map points its map's own mesh does "
+                   "not hide, not the most points through walls (off by default until swept over the worlds)")
     p.add_argument("--floor-spans", action="store_true",
                    help="the first map is placed by the floor's measure of each distance between two stops, its "
                    "stops free on the rig, not scaled by one floor factor (off by default: first maps within 1 %% "
@@ -102,6 +105,7 @@ def mission_config(args: argparse.Namespace):
     """The `AdaptiveConfig` of the mission flags."""
     from robot.mission.adaptive import ASIFT_TILTS, AdaptiveConfig
     from robot.mission.bundle import BundleConfig
+    from robot.mission.look_heading import LookConfig
     from robot.mission.map_building import MapConfig
 
     if not 0 <= args.far_goals <= args.goals_per_round:
@@ -111,6 +115,7 @@ def mission_config(args: argparse.Namespace):
                           min_gain_rad=np.radians(args.min_gain_deg), far_goals_per_round=args.far_goals,
                           retry_tilts=ASIFT_TILTS if args.retry_tilts else (), sweep_frontiers=args.sweep_frontiers,
                           keep_off_surfaces=args.keep_off_surfaces,
+                          look=LookConfig(occlude=args.look_occlusion),
                           bundle=BundleConfig() if args.bundle_adjust else None,
                           map=MapConfig(floor_spans=args.floor_spans))
 

@@ -50,6 +50,7 @@ from functools import partial
 from pathlib import Path
 
 import numpy as np
+from trimesh.ray.ray_pyembree import RayMeshIntersector
 
 from explore.candidates import free_space_from_mesh, sample_candidates
 from explore.frontier import SonarConfig, SonarGrid, frontiers, revealed, sonar_grid, toward_unknown
@@ -64,7 +65,7 @@ from localization.feature_localizer import FeatureLocalizerConfig, FeatureMap
 from localization.motion_models import wrap_angle
 from robot.mission.bundle import BundleConfig, PairMatches, adjust_grown
 from robot.mission.localizer import FilteredBody, MissionFilterConfig, MissionLocalizer
-from robot.mission.look_heading import LookConfig, look_heading
+from robot.mission.look_heading import LookConfig, Occluder, hidden_by, look_heading
 from robot.mission.map_building import (MapConfig, RobotMap, Tracks, at_mount_height, extend_map, robot_pose,
                                         stereo_tracks)
 from robot.mission.observer import MissionObserver, MissionPhoto
@@ -360,6 +361,7 @@ class AdaptiveMission:
         """Tracks of the goal photos fixed since the last `rebuild`, which meshes them."""
         self._mesh_photos: set[int] = set()  # those photos
         self.fmap = self._feature_map()
+        self._map_rays: tuple[object, Occluder] | None = None  # the map's mesh and its `hidden_by`
 
     # --- localisation -------------------------------------------------------------------
     def _feats(self, i: int):
@@ -478,9 +480,19 @@ class AdaptiveMission:
             return
         heading = look_heading(self.body.est.pose, self.tracks.points, self.tracks.seen_from,
                                self.robot.intrinsics, self.robot.image_size, self.robot.cam_from_robot,
-                               self.config.localizer.min_inliers, self.config.look)
+                               self.config.localizer.min_inliers, self.config.look, self._hidden_by_map())
         if heading is not None:
             self._face(heading)
+
+    def _hidden_by_map(self) -> Occluder | None:
+        """What hides map points from the camera for `look_heading`: the map's mesh, with
+        `LookConfig.occlude` (its ray intersector built once per mesh); else None."""
+        look = self.config.look
+        if look is None or not look.occlude or len(self.map.mesh.faces) == 0:
+            return None
+        if self._map_rays is None or self._map_rays[0] is not self.map.mesh:
+            self._map_rays = (self.map.mesh, hidden_by(RayMeshIntersector(self.map.mesh), look.occlusion_margin_m))
+        return self._map_rays[1]
 
     def _mapped_view_heading(self) -> float | None:
         """After a failed fix: the heading (rad) of the nearest map photo (posed by SfM or a

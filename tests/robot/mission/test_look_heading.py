@@ -57,3 +57,24 @@ def test_no_map_points_no_turn():
     assert look_heading(np.array([1.0, 2.0, 0.3]), none, none, K, SIZE, MOUNT, min_points=12) is None
 
 
+
+
+def test_points_of_the_next_room_hidden_by_the_maps_mesh_do_not_count():
+    """The next room's wall (x = 4) was mapped from its own side of the wall between the
+    rooms (x = 2), so the angle test passes it; the map's mesh of that wall hides it."""
+    import trimesh
+    from trimesh.ray.ray_pyembree import RayMeshIntersector
+
+    from robot.mission.look_heading import hidden_by
+
+    near, far = wall(-2.0, 300, 1), wall(4.0, 900, 2)  # behind the robot / beyond the wall at x = 2
+    pts = np.vstack([near, far])
+    seen_from = np.vstack([np.tile([-0.5, 0.0, 0.4], (300, 1)), np.tile([2.5, 0.0, 0.4], (900, 1))])
+    partition = trimesh.creation.box(extents=(0.1, 6.0, 3.0), transform=trimesh.transformations.translation_matrix(
+        (2.0, 0.0, 1.5)))
+    hidden = hidden_by(RayMeshIntersector(partition), LookConfig().occlusion_margin_m)
+    assert hidden(np.array([0.0, 0.0, 0.4]), far).all() and not hidden(np.array([0.0, 0.0, 0.4]), near).any()
+    through = look_heading(np.zeros(3), pts, seen_from, K, SIZE, MOUNT, min_points=12)
+    assert through is None  # it faces the hidden wall already, with the most points
+    seen = look_heading(np.zeros(3), pts, seen_from, K, SIZE, MOUNT, min_points=12, hidden=hidden)
+    assert seen is not None and np.cos(seen) < -0.9  # turns to the wall it can see (-x, within a step)
