@@ -93,8 +93,9 @@ def add_mission_args(p: argparse.ArgumentParser, photos_default: int) -> None:
                    "recoveries, not only at its goals (off by default: it took one apartment's bumps from 85 "
                    "to 25, but over 15 worlds the goals given up were 76 against main's 56 and 74)")
     p.add_argument("--look-occlusion", action="store_true",
-                   help="before a localise photo the robot faces the most map points its map's own mesh does "
-                   "not hide, not the most points through walls (off by default until swept over the worlds)")
+                   help="before a localise photo, and for its retry after a failed fix, the robot faces the most "
+                   "map points its map's own mesh does not hide, not the most points through walls (off by "
+                   "default until swept over the worlds)")
     p.add_argument("--floor-spans", action="store_true",
                    help="the first map is placed by the floor's measure of each distance between two stops, its "
                    "stops free on the rig, not scaled by one floor factor (off by default: first maps within 1 %% "

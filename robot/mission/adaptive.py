@@ -65,7 +65,7 @@ from localization.feature_localizer import FeatureLocalizerConfig, FeatureMap
 from localization.motion_models import wrap_angle
 from robot.mission.bundle import BundleConfig, PairMatches, adjust_grown
 from robot.mission.localizer import FilteredBody, MissionFilterConfig, MissionLocalizer
-from robot.mission.look_heading import LookConfig, Occluder, hidden_by, look_heading
+from robot.mission.look_heading import LookConfig, Occluder, hidden_by, look_heading, retry_heading
 from robot.mission.map_building import (MapConfig, RobotMap, Tracks, at_mount_height, extend_map, robot_pose,
                                         stereo_tracks)
 from robot.mission.observer import MissionObserver, MissionPhoto
@@ -468,7 +468,7 @@ class AdaptiveMission:
         self._face_the_map()
         self.take_photo("localise")
         if self.failed > failed and isinstance(self.body, FilteredBody):
-            heading = self._mapped_view_heading()
+            heading = self._retry_heading()
             if heading is not None:
                 self._face(heading)
                 self.take_photo("localise")
@@ -493,6 +493,18 @@ class AdaptiveMission:
         if self._map_rays is None or self._map_rays[0] is not self.map.mesh:
             self._map_rays = (self.map.mesh, hidden_by(RayMeshIntersector(self.map.mesh), look.occlusion_margin_m))
         return self._map_rays[1]
+
+    def _retry_heading(self) -> float | None:
+        """After a failed fix: with `LookConfig.occlude`, the heading more than half the field
+        of view away that sees the most map points the map's mesh does not hide
+        (`retry_heading`), else, or when none sees enough, `_mapped_view_heading`."""
+        if (hidden := self._hidden_by_map()) is not None:
+            heading = retry_heading(self.body.est.pose, self.tracks.points, self.tracks.seen_from,
+                                    self.robot.intrinsics, self.robot.image_size, self.robot.cam_from_robot,
+                                    self.config.localizer.min_inliers, self.config.look, hidden)
+            if heading is not None:
+                return heading
+        return self._mapped_view_heading()
 
     def _mapped_view_heading(self) -> float | None:
         """After a failed fix: the heading (rad) of the nearest map photo (posed by SfM or a

@@ -18,7 +18,10 @@ first: traced in two apartments' missions against the truth (stop of 2026-12-02)
 with the most points through walls saw at the median 3 points truly in view on apartment 3 (4,306
 counted), and the occluded count raised the expected share of localise photos fixed there
 from 0.36 to 0.52. On the first maps alone (an earlier stop) the same test had helped
-apartments 0-4 and hurt 5-9; off by default until a sweep over the worlds decides."""
+apartments 0-4 and hurt 5-9; off by default until a sweep over the worlds decides. With it,
+a localise photo that found no pose is retried at `retry_heading` (the mission's retry
+otherwise turns the way the nearest map photo looked): on the same traces its expected share
+fixed rose from 0.17 to 0.35 on apartment 3, 0.28 to 0.48 on apartment 0."""
 
 from __future__ import annotations
 
@@ -123,3 +126,17 @@ def look_heading(pose: np.ndarray, points: np.ndarray, seen_from: np.ndarray, K:
     if counts[best] < min_points or counts[best] <= config.min_gain * counts[0]:
         return None
     return float(headings[best])
+
+
+def retry_heading(pose: np.ndarray, points: np.ndarray, seen_from: np.ndarray, K: np.ndarray,
+                  size: tuple[int, int], cam_from_robot: np.ndarray, min_points: int,
+                  config: LookConfig = LookConfig(), hidden: Occluder | None = None) -> float | None:
+    """After a failed fix at `pose` (its heading the one that failed): the heading (rad) with
+    the most `heading_counts` points among those more than half the field of view away from
+    it (a view that shares little with the failed one), or None when none sees `min_points`."""
+    headings, counts = heading_counts(pose, points, seen_from, K, size, cam_from_robot, config, hidden)
+    half_fov = np.arctan2(size[0] / 2, K[0, 0])
+    away = np.abs((headings - pose[2] + np.pi) % (2 * np.pi) - np.pi) > half_fov
+    counts = np.where(away, counts, -1)
+    best = int(np.argmax(counts))
+    return float(headings[best]) if counts[best] >= min_points else None

@@ -78,3 +78,14 @@ def test_points_of_the_next_room_hidden_by_the_maps_mesh_do_not_count():
     assert through is None  # it faces the hidden wall already, with the most points
     seen = look_heading(np.zeros(3), pts, seen_from, K, SIZE, MOUNT, min_points=12, hidden=hidden)
     assert seen is not None and np.cos(seen) < -0.9  # turns to the wall it can see (-x, within a step)
+
+
+def test_the_retry_looks_away_from_the_failed_view():
+    from robot.mission.look_heading import retry_heading
+
+    front, back = wall(3.0, 900, 1) * [1.0, 0.25, 1.0], wall(-3.0, 300, 2)  # the front one 1 m wide
+    pts = np.vstack([front, back])
+    seen_from = np.vstack([np.tile([1.0, 0.0, 0.4], (900, 1)), np.tile([-1.0, 0.0, 0.4], (300, 1))])
+    heading = retry_heading(np.zeros(3), pts, seen_from, K, SIZE, MOUNT, min_points=12)
+    assert heading is not None and np.cos(heading) < -0.9  # the front wall failed: the back one
+    assert retry_heading(np.zeros(3), front, seen_from[:900], K, SIZE, MOUNT, min_points=12) is None
