@@ -20,8 +20,9 @@ From the map of the photos so far (`robot.mission.map_building`), each round:
    (SIFT + RANSAC PnP against the map, `localization.feature_localizer`, as a mixture
    proposal, only when level, `max_fix_tilt_px`; a localise photo first turns to the map's
    points, `robot.mission.look_heading`; after a failed fix it looks the way the
-   nearest map photo looked and tries again; photos without a fix, or fixed only where the
-   filter was lost, stay out of the map's tracks), and an extra photo when the filter's
+   nearest map photo looked and tries again (`LookConfig.occlude`, off by default: both
+   headings count only the points the map's mesh does not hide); photos without a fix, or
+   fixed only where the filter was lost, stay out of the map's tracks), and an extra photo when the filter's
    spread grows too large: the plan consumes the filter's estimate, never a simulator's
    truth. On an obstacle it marks the contact point blocked on the grid (for this goal;
    dear for every later one), backs off, drives a little off the path and re-plans; after
@@ -265,7 +266,8 @@ class AdaptiveConfig:
     time for the same poses offline, not swept), so it stays off."""
     look: LookConfig | None = field(default_factory=LookConfig)
     """Before a localise photo, turn to the heading that sees the most map points SIFT can
-    match (`robot.mission.look_heading`); None: photograph wherever the path left the robot."""
+    match (`robot.mission.look_heading`; `LookConfig.occlude`: not those its mesh hides, and
+    the retry after a failed fix by the same count); None: photograph wherever the path left the robot."""
 
 
 def _near_segment(xy: np.ndarray, a: np.ndarray, b: np.ndarray, radius: float) -> np.ndarray:
