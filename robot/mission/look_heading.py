@@ -24,7 +24,9 @@ walls saw 3 points truly in view at the median (4,306 counted); the occluded cou
 expected share fixed at the chosen heading from 0.38 to 0.51 there, and by 0.06, 0.01, 0.03
 and 0.01 on the held-out apartments 0, 5, 8 and office 0; the retry's from 0.17 to 0.35 on
 apartment 3 and 0.28 to 0.48 on apartment 0. On the first maps alone (an earlier stop) the
-occlusion test had helped apartments 0-4 and hurt 5-9. Off by default until a sweep decides."""
+occlusion test had helped apartments 0-4 and hurt 5-9. Off by default: in one sweep draw over
+the 15 worlds (stop of 2026-12-02) PnP fixed more of its attempts than in main's two draws
+on 4 worlds and fewer on 2, but the photos lost beyond 15 cm did not fall below main's."""
 
 from __future__ import annotations
 
