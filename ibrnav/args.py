@@ -95,7 +95,7 @@ def add_mission_args(p: argparse.ArgumentParser, photos_default: int) -> None:
     p.add_argument("--look-occlusion", action="store_true",
                    help="before a localise photo, and for its retry after a failed fix, the robot faces the most "
                    "map points its map's own mesh does not hide, not the most points through walls (off by "
-                   "default: more fixes in one sweep draw, but no fewer photos lost beyond 15 cm)")
+                   "default: over two sweep draws no fewer photos lost beyond 15 cm, and no more fixes in the second)")
     p.add_argument("--floor-spans", action="store_true",
                    help="the first map is placed by the floor's measure of each distance between two stops, its "
                    "stops free on the rig, not scaled by one floor factor (off by default: first maps within 1 %% "
