@@ -480,11 +480,16 @@ class AdaptiveMission:
         match (`look_heading`; config `look`), when it sees clearly more than the current one."""
         if self.config.look is None or not isinstance(self.body, FilteredBody):
             return
-        heading = look_heading(self.body.est.pose, self.tracks.points, self.tracks.seen_from,
-                               self.robot.intrinsics, self.robot.image_size, self.robot.cam_from_robot,
-                               self.config.localizer.min_inliers, self.config.look, self._hidden_by_map())
+        heading = self._heading_by(look_heading, self._hidden_by_map())
         if heading is not None:
             self._face(heading)
+
+    def _heading_by(self, choose, hidden: Occluder | None) -> float | None:
+        """`choose` (`look_heading` or `retry_heading`) at the estimate, over the localiser's
+        tracks, with the robot's camera, PnP's minimum inliers and `hidden`."""
+        return choose(self.body.est.pose, self.tracks.points, self.tracks.seen_from, self.robot.intrinsics,
+                      self.robot.image_size, self.robot.cam_from_robot, self.config.localizer.min_inliers,
+                      self.config.look, hidden)
 
     def _hidden_by_map(self) -> Occluder | None:
         """What hides map points from the camera for `look_heading`: the map's mesh, with
@@ -501,9 +506,7 @@ class AdaptiveMission:
         of view away that sees the most map points the map's mesh does not hide
         (`retry_heading`), else, or when none sees enough, `_mapped_view_heading`."""
         if (hidden := self._hidden_by_map()) is not None:
-            heading = retry_heading(self.body.est.pose, self.tracks.points, self.tracks.seen_from,
-                                    self.robot.intrinsics, self.robot.image_size, self.robot.cam_from_robot,
-                                    self.config.localizer.min_inliers, self.config.look, hidden)
+            heading = self._heading_by(retry_heading, hidden)
             if heading is not None:
                 return heading
         return self._mapped_view_heading()
