@@ -302,7 +302,7 @@ class AdaptiveMission:
 
     def __init__(self, robot: Robot, body: Body, photos: list[MissionPhoto], robot_map: RobotMap,
                  config: AdaptiveConfig, rng: np.random.Generator, observer: MissionObserver,
-                 unfixed: set[int] | None = None, reposed: set[int] | None = None):
+                 unfixed: set[int] | None = None, reposed: set[int] | None = None, sfm_work: Path | None = None):
         self.robot, self.body, self.photos, self.map = robot, body, photos, robot_map
         self.config, self.rng, self.obs = config, rng, observer
         w, h = robot.image_size
@@ -316,7 +316,12 @@ class AdaptiveMission:
         """Why the failed fixes failed (`localise_photo`), a count per reason. Journalled."""
         self.failed_at_repose = 0
         """`failed` when the photos were last re-posed by SfM (`repose`)."""
-        self._sfm_work: Path | None = None  # `repose`'s SfM workspace
+        self._sfm_work: Path | None = None
+        """`repose`'s SfM workspace, removed with the mission: `sfm_work` (the first map's,
+        `mission._start_adaptive`, its features and matches reused) or, at the first
+        re-posing, a new one."""
+        if sfm_work is not None:
+            self._keep_sfm_work(Path(sfm_work))
         self.reposed: set[int] = set(reposed or ())
         """Localise photos SfM posed (`repose`): not in the model, but in the map's tracks,
         where the robot was lost they are most of the photos of a room."""
@@ -1144,9 +1149,8 @@ class AdaptiveMission:
         `step_limit_s`; the map is then unchanged. Returns how many photos joined the map."""
         c = self.config
         self.failed_at_repose = self.failed
-        if self._sfm_work is None:  # features and matches kept between calls; removed with the mission
-            self._sfm_work = Path(tempfile.mkdtemp(prefix="ibrnav_repose_"))
-            weakref.finalize(self, shutil.rmtree, self._sfm_work, True)
+        if self._sfm_work is None:  # features and matches kept between calls
+            self._keep_sfm_work(Path(tempfile.mkdtemp(prefix="ibrnav_repose_")))
         known = self._map_cameras()  # the anchors; nothing changes them until the photos join
         max_s = limit = None
         if c.step_limit_s:
@@ -1197,6 +1201,11 @@ class AdaptiveMission:
                  f"{100 * err:.1f} cm), {len(joined)} joined the map ({len(new)} of the model; "
                  f"{100 * through:.0f} % of their points where its photos saw empty space)")
         return len(joined)
+
+    def _keep_sfm_work(self, work: Path) -> None:
+        """`work` becomes `repose`'s SfM workspace, removed with the mission."""
+        self._sfm_work = work
+        weakref.finalize(self, shutil.rmtree, work, True)
 
     def seen_through(self, points: np.ndarray) -> float:
         """The share of world `points` (N, 3) (m) lying where the map's photos saw empty space

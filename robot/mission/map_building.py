@@ -420,23 +420,31 @@ def transform_camera(cam: Camera, world_from_sfm: np.ndarray) -> Camera:
 
 def initial_map(images: list[np.ndarray], K: np.ndarray, estimates: np.ndarray, compass_rad: np.ndarray,
                 cam_from_robot: np.ndarray, config: MapConfig = MapConfig(),
-                ranges_m: np.ndarray | None = None) -> RobotMap:
+                ranges_m: np.ndarray | None = None, work: Path | None = None) -> RobotMap:
     """The map of the random-exploration photos `images` with shared intrinsics `K`;
     `estimates` (N, 3) their dead-reckoning SE(2) poses (scale and heading of the frame),
     `compass_rad` (N,) their compass readings (which photos to match), `ranges_m` (N,) their
     ultrasonic readings (a scale, `sonar_scale`; None: not used). SfM's models (one per
     sector of headings, `robot.mission.circles`) are placed in metres together by the
     robot's circles of photos (`place_models`), then the photos of those circles that no
-    model posed are turned into place from a posed neighbour (`complete_circles`)."""
+    model posed are turned into place from a posed neighbour (`complete_circles`).
+    `work`: an SfM workspace the caller keeps (`run_sfm`), mapped afresh (`forget_model`)
+    but with the features and matches of the photos an earlier call there had: the mission
+    builds its first map again, one circle of photos more each time, while the floor cannot
+    check its scale (`mission._first_map`), and the same photos give the same map (test).
+    None: a temporary one."""
     if len(images) < config.min_registered:
         raise MapError(f"{len(images)} photos: SfM needs at least {config.min_registered}")
-    work = Path(tempfile.mkdtemp(prefix="ibrnav_sfm_"))
+    kept = work is not None
+    work = Path(work) if kept else Path(tempfile.mkdtemp(prefix="ibrnav_sfm_"))
     try:
+        forget_model(work)
         recs = run_sfm(images, K, compass_rad, config, work)
         return map_from_models(recs, work / "database.db", K, images[0].shape[:2], estimates, compass_rad,
                                cam_from_robot, config, ranges_m, images)
     finally:
-        shutil.rmtree(work, ignore_errors=True)
+        if not kept:
+            shutil.rmtree(work, ignore_errors=True)
 
 
 def map_from_models(recs: list, database: Path, K: np.ndarray, size_hw: tuple[int, int], estimates: np.ndarray,

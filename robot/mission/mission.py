@@ -12,7 +12,10 @@ from __future__ import annotations
 import itertools
 import logging
 import math
+import shutil
+import tempfile
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -21,7 +24,7 @@ from robot.mission.adaptive import AdaptiveConfig, AdaptiveMission, start_filter
 from robot.mission.journal import MissionJournal, restore_adaptive
 from robot.mission.localizer import FilteredBody, MissionLocalizer
 from robot.mission.circles import circle_ids
-from robot.mission.map_building import MapConfig, MapError, RobotMap, capture_model, initial_map
+from robot.mission.map_building import MapConfig, MapError, RobotMap, capture_model, forget_model, initial_map
 from robot.mission.observer import MissionObserver, MissionPhoto
 from robot.mission.random_stage import Body, RandomExplorationConfig, random_exploration, steps_per_circle
 from robot.mission.watchdog import watchdog
@@ -133,18 +136,21 @@ def run_random_stage(robot: Robot, start_pose: np.ndarray, n_random: int, rcfg: 
     return stage.photos, stage.body
 
 
-def _first_map(stage: RandomStage, robot: Robot, n_random: int, config: AdaptiveConfig) -> RobotMap:
+def _first_map(stage: RandomStage, robot: Robot, n_random: int, config: AdaptiveConfig,
+               work: Path | None = None) -> RobotMap:
     """The initial map of the random stage's `n_random` photos. While SfM cannot map them or
     the floor cannot check the map's scale (`RobotMap.floor_scaled`: no two stops saw a
     common floor, as in a map of one spot, or the pairs disagree, as in a wrong layout), the
     stage goes on for another circle and the map is built again, at most
     `config.extra_random_circles` times within the budget; then the last map, or its error.
-    A resumed stage first takes the whole circles the journal holds photos of."""
+    A resumed stage first takes the whole circles the journal holds photos of. Every build
+    runs in the SfM workspace `work` (None: a temporary one each), so a build after another
+    circle extracts and matches only that circle's photos (`initial_map`)."""
     per_circle = stage.per_circle
     stage.take(n_random + per_circle * _circles_beyond(stage.n_logged, n_random, per_circle))
     while True:
         photos = stage.photos
-        rmap, error = _map_or_error(photos, robot, config)
+        rmap, error = _map_or_error(photos, robot, config, work)
         if rmap is not None and rmap.floor_scaled is not False:
             return rmap
         why = (f"SfM failed ({error})" if rmap is None else
@@ -160,14 +166,14 @@ def _first_map(stage: RandomStage, robot: Robot, n_random: int, config: Adaptive
         log.warning(f"initial map: {why}; took another circle of {len(stage.photos) - before} random photos")
 
 
-def _map_or_error(photos: list[MissionPhoto], robot: Robot, config: AdaptiveConfig
+def _map_or_error(photos: list[MissionPhoto], robot: Robot, config: AdaptiveConfig, work: Path | None = None
                   ) -> tuple[RobotMap | None, MapError | None]:
-    """(`initial_map` of the random `photos`, None), or (None, its MapError)."""
+    """(`initial_map` of the random `photos` in the SfM workspace `work`, None), or (None, its MapError)."""
     log.info(f"initial map: SfM of {len(photos)} photos")
     try:
         return initial_map([p.photo.image for p in photos], robot.intrinsics, np.array([p.estimate for p in photos]),
                            np.array([p.photo.compass_rad for p in photos]), robot.cam_from_robot, config.map,
-                           np.array([p.photo.range_m for p in photos])), None
+                           np.array([p.photo.range_m for p in photos]), work), None
     except MapError as e:
         return None, e
 
@@ -208,18 +214,26 @@ def _start_adaptive(robot: Robot, start_pose: np.ndarray, n_random: int, photo_b
                     rcfg: RandomExplorationConfig, config: AdaptiveConfig, rng: np.random.Generator,
                     obs: MissionObserver, journal) -> tuple[AdaptiveMission, MissionResult]:
     """Random exploration, the initial map (`_first_map`) and the first vision fix;
-    committed as round 0."""
+    committed as round 0. The first map's SfM workspace becomes the adaptive stage's
+    (`AdaptiveMission.repose`), its model forgotten: the re-posings map afresh as before,
+    but extract and match only the photos and pairs the random stage's lack."""
     stage = RandomStage(robot, start_pose, rcfg, rng, obs, journal, photo_budget)
-    rmap = _first_map(stage, robot, n_random, config)
-    photos, body = stage.photos, stage.body
-    for i, cam in rmap.cameras.items():
-        photos[i].camera = cam
-    log.info(f"initial map: {rmap.registered}/{len(photos)} photos posed, {len(rmap.points)} points, "
+    work = Path(tempfile.mkdtemp(prefix="ibrnav_sfm_"))
+    try:
+        rmap = _first_map(stage, robot, n_random, config, work)
+        forget_model(work)
+        photos, body = stage.photos, stage.body
+        for i, cam in rmap.cameras.items():
+            photos[i].camera = cam
+        log.info(f"initial map: {rmap.registered}/{len(photos)} photos posed, {len(rmap.points)} points, "
                  f"{len(rmap.mesh.faces)} faces")
-    result = MissionResult(photos, rmap, start_anchored=_warn_unanchored(rmap, photos, config.map),
-                           first_map_photos=frozenset(rmap.cameras))
-    mission = AdaptiveMission(robot, start_filter(robot, body, photos, rmap, config, rng), photos, rmap,
-                              config, rng, obs)
+        result = MissionResult(photos, rmap, start_anchored=_warn_unanchored(rmap, photos, config.map),
+                               first_map_photos=frozenset(rmap.cameras))
+        mission = AdaptiveMission(robot, start_filter(robot, body, photos, rmap, config, rng), photos, rmap,
+                                  config, rng, obs, sfm_work=work)  # removed with the mission from now on
+    except BaseException:
+        shutil.rmtree(work, ignore_errors=True)
+        raise
     mission.take_photo("localise")
     journal.round_done(mission, result)
     return mission, result

@@ -86,12 +86,13 @@ def test_bench_knows_the_figures_of_every_package():
     from ibrnav.bench import all_figures, bench_modules
 
     assert bench_modules() == ["ibr.bench", "ibr.render.bench", "localization.bench", "explore.bench",
-                               "explore.scenic.bench", "explore.vueplan.bench"]
+                               "explore.scenic.bench", "explore.vueplan.bench", "robot.mission.bench"]
     assert set(all_figures()) == {
         "mesh_views_per_s_64x48", "ulr_fps_640x480_10src", "particle_likelihoods_per_s_64x48", "pnp_s_per_query",
         "pf_seconds_per_query",
         "heuristic_evals_per_s_100src_64x48", "heuristic_evals_per_s_100src_160x120", "astar_s_100x100",
-        "astar_s_1000x1000", "scenic_nbv_poses_per_s", "vueplan_phase2_s_per_nbv", "vueplan_phase1_s_500"}
+        "astar_s_1000x1000", "scenic_nbv_poses_per_s", "vueplan_phase2_s_per_nbv", "vueplan_phase1_s_500",
+        "first_map_again_s"}
 
 
 def test_version_and_quiet_flags():

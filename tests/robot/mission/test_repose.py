@@ -333,6 +333,27 @@ def test_sfm_of_the_same_photos_is_the_same_map(two_rooms, tmp_path):
         np.testing.assert_array_equal(a.images[i].cam_from_world().matrix(), b.images[i].cam_from_world().matrix())
 
 
+def test_a_first_map_built_again_in_its_workspace_is_the_same_map(two_rooms, tmp_path):
+    """The mission builds its first map again, a circle of photos more each time, while the
+    floor cannot check its scale (`mission._first_map`), every build in one SfM workspace
+    (`initial_map(work=)`: the model forgotten, the features and matches kept, so a build
+    extracts and matches only the new photos). The second build there is the build a fresh
+    workspace gives: the same database and the same model to the last digit."""
+    from robot.mission.map_building import forget_model
+
+    robot, images, headings, n = two_rooms
+    cfg, more = MapConfig(), n + 20
+    run_sfm(images[:n], robot.intrinsics, headings[:n], cfg, tmp_path / "kept")
+    forget_model(tmp_path / "kept")
+    kept = run_sfm(images[:more], robot.intrinsics, headings[:more], cfg, tmp_path / "kept")[0]
+    fresh = run_sfm(images[:more], robot.intrinsics, headings[:more], cfg, tmp_path / "fresh")[0]
+    assert _database(tmp_path / "kept") == _database(tmp_path / "fresh")
+    assert set(kept.reg_image_ids()) == set(fresh.reg_image_ids()) and kept.num_points3D() == fresh.num_points3D()
+    for i in kept.reg_image_ids():
+        np.testing.assert_array_equal(kept.images[i].cam_from_world().matrix(),
+                                      fresh.images[i].cam_from_world().matrix())
+
+
 def test_sfm_in_a_child_process_reports_its_error(tmp_path):
     """SfM's own error (`MapError`) crosses from the child process with its message."""
     from robot.mission.map_building import MapError
