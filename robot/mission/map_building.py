@@ -429,7 +429,8 @@ def initial_map(images: list[np.ndarray], K: np.ndarray, estimates: np.ndarray, 
     robot's circles of photos (`place_models`), then the photos of those circles that no
     model posed are turned into place from a posed neighbour (`complete_circles`).
     `work`: an SfM workspace the caller keeps (`run_sfm`), mapped afresh (`forget_model`)
-    but with the features and matches of the photos an earlier call there had: the mission
+    but with the features and matches of the photos an earlier call there had (the same
+    photos at the same indices: a photo is known by its index's file name): the mission
     builds its first map again, one circle of photos more each time, while the floor cannot
     check its scale (`mission._first_map`), and the same photos give the same map (test).
     None: a temporary one."""
