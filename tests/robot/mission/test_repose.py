@@ -10,7 +10,7 @@ from ibr.camera import Camera, rigid
 from ibr.synthetic import make_world
 from robot.mission.adaptive import AdaptiveConfig, AdaptiveMission, start_filter
 from robot.mission.coverage import surface_samples
-from robot.mission.map_building import MapConfig, RobotMap, posed_images, run_sfm
+from robot.mission.map_building import MapConfig, RobotMap, forget_model, posed_images, run_sfm
 from robot.mission.observer import MissionObserver, MissionPhoto
 from robot.mission.random_stage import Body, RandomExplorationConfig, random_exploration
 from robot.mission.repose import (ReposeConfig, anchored, odometry_held, repose_pairs, repose_photos, sfm_cameras,
@@ -327,7 +327,12 @@ def test_sfm_of_the_same_photos_is_the_same_map(two_rooms, tmp_path):
             db.close()
         assert [name for _, name in ids] == sorted(name for _, name in ids)
     assert _database(tmp_path / "a") == _database(tmp_path / "b")
-    a, b = runs
+    _assert_same_model(*runs)
+
+
+def _assert_same_model(a, b):
+    """Two SfM models (pycolmap.Reconstruction) hold the same photos and points, each photo's
+    pose equal to the last digit."""
     assert a.num_points3D() == b.num_points3D() and set(a.reg_image_ids()) == set(b.reg_image_ids())
     for i in a.reg_image_ids():
         np.testing.assert_array_equal(a.images[i].cam_from_world().matrix(), b.images[i].cam_from_world().matrix())
@@ -339,8 +344,6 @@ def test_a_first_map_built_again_in_its_workspace_is_the_same_map(two_rooms, tmp
     (`initial_map(work=)`: the model forgotten, the features and matches kept, so a build
     extracts and matches only the new photos). The second build there is the build a fresh
     workspace gives: the same database and the same model to the last digit."""
-    from robot.mission.map_building import forget_model
-
     robot, images, headings, n = two_rooms
     cfg, more = MapConfig(), n + 20
     run_sfm(images[:n], robot.intrinsics, headings[:n], cfg, tmp_path / "kept")
@@ -348,10 +351,7 @@ def test_a_first_map_built_again_in_its_workspace_is_the_same_map(two_rooms, tmp
     kept = run_sfm(images[:more], robot.intrinsics, headings[:more], cfg, tmp_path / "kept")[0]
     fresh = run_sfm(images[:more], robot.intrinsics, headings[:more], cfg, tmp_path / "fresh")[0]
     assert _database(tmp_path / "kept") == _database(tmp_path / "fresh")
-    assert set(kept.reg_image_ids()) == set(fresh.reg_image_ids()) and kept.num_points3D() == fresh.num_points3D()
-    for i in kept.reg_image_ids():
-        np.testing.assert_array_equal(kept.images[i].cam_from_world().matrix(),
-                                      fresh.images[i].cam_from_world().matrix())
+    _assert_same_model(kept, fresh)
 
 
 def test_sfm_in_a_child_process_reports_its_error(tmp_path):
