@@ -18,7 +18,8 @@ From the map of the photos so far (`robot.mission.map_building`), each round:
    target-node switching within `switch_m` on the estimate of an SE(2) particle filter
    (`robot.mission.localizer`): odometry and compass between nodes, *vision* at the nodes
    (SIFT + RANSAC PnP against the map, `localization.feature_localizer`, as a mixture
-   proposal, only when level, `max_fix_tilt_px`; a localise photo first turns to the map's
+   proposal, only when level, `max_fix_tilt_px`, and turned from the compass-held estimate by at
+   most `max_fix_turn_deg`; a localise photo first turns to the map's
    points, `robot.mission.look_heading`; after a failed fix it looks the way the
    nearest map photo looked and tries again (`LookConfig.occlude`, off by default: both
    headings count only the points the map's mesh does not hide); photos without a fix, or
@@ -96,10 +97,11 @@ first map's), where no map point is in view and no description of the photo help
 map grown after every goal (`AdaptiveMission.grow_tracks`) from fixes the filter vouches for
 (`take_photo`, `max_fix_jump_m`), it is on by default (stop of 2026-11-30, seventh)."""
 
-FIX_FAILURES = ("no pose", "height", "jump", "tilt")
+FIX_FAILURES = ("no pose", "height", "jump", "heading", "tilt")
 """Why a photo's fix failed (`AdaptiveMission.localise_photo`): PnP found no pose (too few
 inliers against the map); or its pose was rejected for the camera's height, for a jump from
-the estimate, or for a camera tilted out of level. Of apartments 2 and 3's 913 and 1,186
+the estimate, for a heading turned from the compass-held estimate, or for a camera tilted
+out of level (a photo is counted once, by its last try's reason). Of apartments 2 and 3's 913 and 1,186
 adaptive photos, 710 and 886 found no pose while the rejected were 13 and 12 (SIFT at 0.04,
 `AdaptiveConfig.localizer`): the map and the features, not the checks, left them unfixed."""
 
@@ -205,6 +207,18 @@ class AdaptiveConfig:
     filter was within 5-34 cm (their inliers on map points 0.2-0.3 m off the surfaces); the
     filter followed them, and their points drew the next fixes 1 m off for 150 photos (p95
     118 cm). A robot's accuracy, not a scene's."""
+    max_fix_turn_deg: float = 8.0
+    """A PnP fix whose heading differs from the filter's by more than this (degrees) is
+    rejected (`AdaptiveMission.turn_gate`; without the compass, also by more than 3 of the
+    filter's heading spreads). The compass holds the filter's heading
+    (sigma 5 degrees per reading in the filter's model; traced against the truth on
+    apartments 6 and 7, the estimate's heading was within 5.5 degrees at the 99th
+    percentile), so a fix that turns the robot further is a wrong pose, whatever its
+    position says: of the 514 fixes within 10 cm of the truth, 99 % differed from the
+    estimate by at most 6 degrees and one by more than 8 (9.6); the wrong fixes that began
+    apartment 6's drift (0.4-1.4 m off, 15-29 inliers, each inside the position gate) by
+    14-21 degrees, and so did those that held it 1.2-1.7 m off afterwards (40-50 inliers).
+    A compass's accuracy, not a scene's."""
     max_fix_height_err_m: float = 0.15
     """A PnP fix whose camera height is off by more than this is rejected (m)."""
     max_fix_tilt_px: float = 6.0
@@ -448,7 +462,8 @@ class AdaptiveMission:
     def _fix_rejected(self, res) -> str | None:
         """Why a PnP result (`PnPResult` or None) is no fix (`FIX_FAILURES`), or None when it
         passes the sanity checks: camera height; within `max_fix_jump_m` of the estimate, or
-        3 spreads; level, `max_fix_tilt_px` (checked last: it reads every map photo)."""
+        3 spreads; turned from it by at most `turn_gate`; level, `max_fix_tilt_px` (checked
+        last: it reads every map photo)."""
         c = self.config
         if res is None:
             return "no pose"
@@ -458,6 +473,8 @@ class AdaptiveMission:
             return "height"
         if np.hypot(*(pose[:2] - self.body.est.pose[:2])) >= max(c.max_fix_jump_m, 3 * self.spread()):
             return "jump"
+        if abs(wrap_angle(pose[2] - self.body.est.pose[2])) >= self.turn_gate():
+            return "heading"
         if self.tilt_of_camera(res.cam_from_world) > np.arctan(c.max_fix_tilt_px / self.template.K[0, 0]):
             return "tilt"
         return None
@@ -535,6 +552,23 @@ class AdaptiveMission:
     def spread(self) -> float:
         """The filter's position spread (m; 0 without a filter, `MissionLocalizer.spread_m`)."""
         return self.body.est.spread_m if isinstance(self.body, FilteredBody) else 0.0
+
+    def heading_spread(self) -> float:
+        """The filter's heading spread (rad, the standard deviation of its particles' wrapped
+        headings; 0 without a filter)."""
+        return float(np.sqrt(max(self.body.est.cov[2, 2], 0.0))) if isinstance(self.body, FilteredBody) else 0.0
+
+    def turn_gate(self) -> float:
+        """The largest turn (rad) a fix may make from the estimate's heading: `max_fix_turn_deg`
+        while the filter reads the compass, which holds its heading whatever its particles'
+        spread says (a turn in place draws their headings from the compass's model, sigma 5
+        degrees: 3 spreads, about 15 degrees, let through 6 of apartment 6's wrong fixes, turned
+        9-14 degrees, 0.4-0.6 m off); without the compass, also 3 of the filter's heading
+        spreads, as odometry alone lets the heading drift."""
+        turn = np.radians(self.config.max_fix_turn_deg)
+        if isinstance(self.body, FilteredBody) and self.config.filter.compass_sigma_rad > 0:
+            return turn
+        return max(turn, 3 * self.heading_spread())
 
     def lost(self) -> bool:
         """The filter's spread is above `MissionFilterConfig.relocalise_std_m` (never without a filter)."""

@@ -443,6 +443,30 @@ def test_a_fix_tilted_out_of_level_is_rejected(office, monkeypatch):
         assert m.failure_reasons["tilt"] == tilted + (not accepted)
 
 
+def test_a_fix_turned_from_the_compass_held_heading_is_rejected(office, monkeypatch):
+    """The compass holds the filter's heading: a PnP pose at the estimate's place but turned
+    12 degrees from its heading (beyond `max_fix_turn_deg`) is a wrong fix (apartment 6's
+    drift began with fixes turned 14-21 degrees), counted under "heading", however wide the
+    particles' headings spread; one turned 3 degrees passes. Without the compass, the
+    filter's heading spread widens the gate."""
+    from localization.feature_localizer import PnPResult
+
+    m, robot, _ = office
+    no_compass = replace(m.config, filter=replace(m.config.filter, compass_sigma_rad=0.0))
+    wide = np.radians(6.0)
+    for turn_deg, spread, config, accepted in ((3.0, 0.0, m.config, True), (12.0, 0.0, m.config, False),
+                                               (12.0, wide, m.config, False), (12.0, wide, no_compass, True)):
+        pose = m.body.est.pose + [0.0, 0.0, np.radians(turn_deg)]
+        cam = robot_camera(pose, robot.intrinsics, robot.image_size, robot.cam_from_robot)
+        fix = PnPResult(cam.cam_from_world, 40, 30, cam)
+        monkeypatch.setattr(m.fmap, "localize", lambda image, template, tilts=None, fix=fix: fix)
+        monkeypatch.setattr(m, "heading_spread", lambda spread=spread: spread)
+        monkeypatch.setattr(m, "config", config)
+        turned = m.failure_reasons["heading"]
+        assert (m.localise_photo(robot.capture()) is not None) == accepted
+        assert m.failure_reasons["heading"] == turned + (not accepted)
+
+
 def test_a_failed_fix_is_counted_by_its_reason(office, monkeypatch):
     """No PnP pose, a camera at the wrong height, a pose far from the estimate: each failed
     fix is counted under its own reason, so a mission's report tells a map that posed
