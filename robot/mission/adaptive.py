@@ -564,11 +564,9 @@ class AdaptiveMission:
         spread says (a turn in place draws their headings from the compass's model, sigma 5
         degrees: 3 spreads, about 15 degrees, let through 6 of apartment 6's wrong fixes, turned
         9-14 degrees, 0.4-0.6 m off); without the compass, also 3 of the filter's heading
-        spreads, as odometry alone lets the heading drift."""
+        spreads, as odometry alone lets the heading drift (no spread without a filter)."""
         turn = np.radians(self.config.max_fix_turn_deg)
-        if isinstance(self.body, FilteredBody) and self.config.filter.compass_sigma_rad > 0:
-            return turn
-        return max(turn, 3 * self.heading_spread())
+        return turn if self.config.filter.compass_sigma_rad > 0 else max(turn, 3 * self.heading_spread())
 
     def lost(self) -> bool:
         """The filter's spread is above `MissionFilterConfig.relocalise_std_m` (never without a filter)."""
