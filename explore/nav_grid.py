@@ -162,3 +162,25 @@ def reachable_at(grid: NavGrid, mask: np.ndarray, xy: np.ndarray) -> np.ndarray:
     out = np.zeros(len(ij), bool)
     out[ok] = mask[ij[ok, 0], ij[ok, 1]]
     return out
+
+
+def near_segments(grid: NavGrid, segments: np.ndarray, radius_m: float) -> np.ndarray:
+    """(H, W) bool: the cells whose centre lies within radius_m (metres) of a cell that one
+    of the straight segments (S, 2, 2) (world xy endpoints, metres) passes through. Each
+    segment is sampled every half cell, so no cell it crosses is skipped; the parts outside
+    the grid are ignored."""
+    H, W = grid.shape
+    hit = np.zeros((H, W), bool)
+    segs = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2)
+    if len(segs) == 0:
+        return hit
+    n = np.ceil(np.linalg.norm(segs[:, 1] - segs[:, 0], axis=1) / (grid.cell_m / 2)).astype(int) + 1
+    t = np.concatenate([np.linspace(0.0, 1.0, k) for k in n])
+    a = np.repeat(segs[:, 0], n, axis=0)
+    b = np.repeat(segs[:, 1], n, axis=0)
+    ij = grid.world_to_cell(a + t[:, None] * (b - a))
+    ok = grid.in_bounds(ij)
+    hit[ij[ok, 0], ij[ok, 1]] = True
+    if not hit.any():
+        return hit
+    return ndimage.distance_transform_edt(~hit) * grid.cell_m <= radius_m

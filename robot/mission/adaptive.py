@@ -56,7 +56,7 @@ from trimesh.ray.ray_pyembree import RayMeshIntersector
 
 from explore.candidates import free_space_from_mesh, sample_candidates
 from explore.frontier import SonarConfig, SonarGrid, frontiers, revealed, sonar_grid, toward_unknown
-from explore.nav_grid import NavGridConfig, nav_grid_from_points, reachable_at, reachable_mask
+from explore.nav_grid import NavGridConfig, nav_grid_from_points, near_segments, reachable_at, reachable_mask
 from explore.path_simplify import plan_path
 from explore.view_run import view_runs
 from explore.view_quality import ViewQuality, ViewQualityConfig
@@ -357,6 +357,11 @@ class AdaptiveMission:
         self.trail: list[np.ndarray] = []
         """The estimate's xy (world, m) before and after each of the last `trail_drives`
         drives, (2, 2) each: the robot has just driven there (`_from_here`). Journalled."""
+        self.swept: list[np.ndarray] = []
+        """The estimate's xy (world, m) before and after each drive of the adaptive stage that
+        no bumper stopped, made while the filter was localised at both ends, (2, 2) each:
+        space the robot's own body drove through, passable in every later grid (`_swept_open`).
+        Journalled."""
         self.stepped_from: np.ndarray | None = None
         """Where (world xy, m, on the estimate) the robot stood on its plan before the stereo
         pair's side step (`capture_at`); None once it follows a plan again (`_way_back`).
@@ -860,7 +865,7 @@ class AdaptiveMission:
             cost = np.where(free_cells.reshape(H, W) | heard, grid.cost, unseen)
             # the ultrasonic found it empty: passable, if dear where the map's points say otherwise
             grid = replace(grid, cost=np.where(heard, np.minimum(cost, self.config.max_path_cost), cost))
-        grid = self._with_bumps(grid, self.bumps, dear=True)
+        grid = self._with_bumps(self._swept_open(grid), self.bumps, dear=True)
         if self.config.keep_off_surfaces:
             grid = self._near_surfaces(grid)
         self.obs.grid(grid)
@@ -883,6 +888,21 @@ class AdaptiveMission:
         xy = grid.centres()
         near = ~self.clear_of_surfaces(xy).reshape(H, W)
         return replace(grid, cost=np.where(near, np.maximum(grid.cost, self.config.max_path_cost), grid.cost))
+
+    def _swept_open(self, grid):
+        """`grid` with the cells within half the robot's radius of the drives it made while
+        localised (`swept`) passable (cost at most `max_path_cost`): its own body drove
+        through them, the surest free space it has, whatever the map's points or the photos'
+        views say (half the radius: the estimate's error there, within the filter's spread).
+        Why: a rebuilt grid can close a doorway or a corridor the robot has driven through
+        (apartment 2, traced: a new round's grid split the corridor into three parts at the
+        bedroom's door; the round's frontier goals, reachable from where the robot stood at
+        the round's start, were given up for "no path" once it had driven back to the
+        kitchen, and the bedroom and the corridor's east end were never entered)."""
+        if not self.swept:
+            return grid
+        near = near_segments(grid, np.array(self.swept), self.config.robot_radius_m / 2)
+        return replace(grid, cost=np.where(near, np.minimum(grid.cost, self.config.max_path_cost), grid.cost))
 
     def _with_bumps(self, grid, contacts: list[np.ndarray], dear: bool = False):
         """`grid` with the cells within `robot_radius_m` of each contact point (2,) blocked,
@@ -961,10 +981,14 @@ class AdaptiveMission:
         return self._drive(float(min(self.config.leg_m, np.hypot(*d))))
 
     def _drive(self, distance_m: float):
-        """Drive `distance_m` (m; negative: backwards), remembering the drive in `trail`."""
-        before = self.body.est.pose[:2].copy()
+        """Drive `distance_m` (m; negative: backwards), remembering the drive in `trail` and,
+        when no bumper stopped it and the filter was localised before and after, in `swept`."""
+        before, localised = self.body.est.pose[:2].copy(), not self.lost()
         motion = self.body.move(drive=distance_m)
-        self.trail = [*self.trail, np.array([before, self.body.est.pose[:2]])][-self.config.trail_drives:]
+        drive = np.array([before, self.body.est.pose[:2]])
+        self.trail = [*self.trail, drive][-self.config.trail_drives:]
+        if localised and not motion.blocked and not self.lost():
+            self.swept.append(drive)
         return motion
 
     def _recover(self, motion) -> None:
@@ -1010,7 +1034,8 @@ class AdaptiveMission:
         c = self.config
         obstacles, legs = 0, 0
         self.give_up_reason = ""
-        grid = self._with_bumps(grid, self.bumps, dear=True)  # the obstacles found since the grid was built
+        # the space driven through and the obstacles found since the grid was built
+        grid = self._with_bumps(self._swept_open(grid), self.bumps, dear=True)
         while obstacles <= c.max_obstacles and legs < c.max_legs_per_goal:
             path = plan_path(self._from_here(grid), self.body.est.pose[:2], goal[:2], max_cost=c.max_path_cost)
             if path is None:

@@ -125,6 +125,7 @@ class SessionJournal(MissionJournal):
                  "unfixed": sorted(mission.unfixed), "failed_at_repose": mission.failed_at_repose,
                  "reposed": sorted(mission.reposed), "stepped_from": mission.stepped_from,
                  "trail": np.array(mission.trail).reshape(-1, 2, 2),
+                 "swept": np.array(mission.swept).reshape(-1, 2, 2),
                  "sonar_readings": np.array(mission.sonar_readings).reshape(-1, 4),
                  "rng": mission.rng.bit_generator.state}
         if hasattr(self.robot, "true_pose"):

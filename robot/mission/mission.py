@@ -261,6 +261,7 @@ def _resume_adaptive(robot: Robot, state: dict, config: AdaptiveConfig, rng: np.
     mission.bumps = [np.asarray(b, float) for b in state.get("bumps", [])]
     mission.obstacles_met.update(state.get("obstacles_met", {}))
     mission.trail = [np.asarray(s, float) for s in state.get("trail", [])]
+    mission.swept = [np.asarray(s, float) for s in state.get("swept", [])]
     mission.sonar_readings = [np.asarray(s, float) for s in state.get("sonar_readings", [])]
     if state.get("stepped_from") is not None:  # the last round ended on a stereo pair's side step
         mission.stepped_from = np.asarray(state["stepped_from"], float)

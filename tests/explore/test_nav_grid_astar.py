@@ -10,7 +10,8 @@ import trimesh
 from scipy.sparse.csgraph import dijkstra
 
 from explore.astar import GridError, astar, grid_graph, path_cost
-from explore.nav_grid import NavGrid, NavGridConfig, kde_cost, nav_grid_from_points, reachable_at, reachable_mask
+from explore.nav_grid import (NavGrid, NavGridConfig, kde_cost, nav_grid_from_points, near_segments, reachable_at,
+                              reachable_mask)
 from explore.path_simplify import merge_collinear, plan_path, polyline_cost, segment_cost, simplify_path
 
 
@@ -183,3 +184,14 @@ def test_cells_touching_at_a_corner_are_not_reachable():
     grid = NavGrid(np.zeros(2), 1.0, np.zeros_like(cost), cost)
     mask = reachable_mask(grid, (0.5, 0.5), max_cost=0.35)
     assert not mask[5, 5] and plan_path(grid, (0.5, 0.5), (5.5, 5.5), max_cost=0.35) is None
+
+
+def test_cells_near_a_segment_are_a_band_along_it():
+    """A segment across a 0.1 m grid marks the cells it crosses and those within the radius
+    of them (a band 3 cells wide for 0.1 m), nothing beyond its ends or off the grid."""
+    grid = NavGrid(np.zeros(2), 0.1, np.zeros((10, 20)), np.zeros((10, 20)))
+    near = near_segments(grid, np.array([[[0.25, 0.55], [1.45, 0.55]], [[5.0, 5.0], [6.0, 5.0]]]), 0.1)
+    rows, cols = np.nonzero(near)
+    assert set(rows) == {4, 5, 6} and near[5, 2:15].all() and near[4, 2:15].all() and near[6, 2:15].all()
+    assert not near[5, :1].any() and not near[5, 16:].any() and near.sum() == 3 * 13 + 2
+    assert not near_segments(grid, np.zeros((0, 2, 2)), 0.1).any()

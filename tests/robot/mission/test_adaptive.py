@@ -315,6 +315,32 @@ def test_the_robots_last_drives_stay_open(office):
     assert near.tolist() == [True, False, False]  # the fence stays shut elsewhere
 
 
+def test_space_driven_through_while_localised_stays_open(office, monkeypatch):
+    """Where the robot drove, localised, a rebuilt grid stays passable (here: a fence of map
+    points around it that it drove in through from 0.8 m outside): goals outside the fence
+    are drawn and planned to again, through the drive. A drive made while the filter was
+    lost is not kept (its estimate may lie anywhere within the spread)."""
+    m, _, _ = office
+    est = m.body.est.pose[:2]
+    pen = fenced(m, 0.4)
+    pen.swept = [np.array([est + [0.8, 0.0], est])]
+    goals, _, grid = pen.choose_goals()
+    far = goals[np.hypot(*(goals[:, :2] - est).T) > 1.0]
+    assert len(far)
+    path = plan_path(grid, est, far[0, :2], max_cost=m.config.max_path_cost)
+    assert path is not None
+    crossing = fence_crossing(path, est)
+    assert abs(crossing[1] - est[1]) < m.config.robot_radius_m and crossing[0] > est[0]  # out the way it came in
+    monkeypatch.setattr(pen, "lost", lambda: True)
+    pen._drive(0.05)
+    pen._drive(-0.05)
+    assert len(pen.swept) == 1
+    monkeypatch.setattr(pen, "lost", lambda: False)
+    pen._drive(0.05)
+    pen._drive(-0.05)
+    assert len(pen.swept) == 3
+
+
 def test_the_ultrasonic_outranks_stray_map_points(office):
     """Map points the ultrasonic's readings contradict (the fence of `fenced`, where the real
     office is empty) make the grid dear, not blocked: the robot is not trapped by them."""
@@ -373,24 +399,41 @@ def test_a_frontier_sweep_reads_a_full_circle_into_the_ultrasonics_grid(office):
         del m.sonar_readings[n0:]
 
 
-def test_the_sweeps_readings_are_committed_with_the_round(office, tmp_path):
-    """A round's commit (`SessionJournal.round_done`) holds the readings taken without a
-    photo, as a resumed mission reads them back (`mission._resume_adaptive`)."""
+def committed(m: AdaptiveMission, robot: SimRobot, tmp_path, key: str) -> list[np.ndarray]:
+    """The mission's list `key` as a round's commit (`SessionJournal.round_done`) holds it
+    and a resumed mission reads it back (`mission._resume_adaptive`)."""
     from robot.mission.journal import SessionJournal
     from robot.mission.mission import MissionResult
     from robot.session import CaptureSession
 
+    with CaptureSession.create(tmp_path / "s", robot.intrinsics, robot.image_size, robot.cam_from_robot) as s:
+        SessionJournal(s, robot, replayable=True).round_done(m, MissionResult(m.photos, m.map, rounds=1))
+    return [np.asarray(r, float) for r in CaptureSession.open(tmp_path / "s").last_commit["state"][key]]
+
+
+def test_the_sweeps_readings_are_committed_with_the_round(office, tmp_path):
+    """A round's commit holds the readings taken without a photo, as a resumed mission reads them back."""
     m, robot, _ = office
     n0 = len(m.sonar_readings)
     m.sonar_readings += [np.array([0.5, -1.0, 0.3, 1.27]), np.array([0.5, -1.0, 0.65, 2.55])]
     try:
-        with CaptureSession.create(tmp_path / "s", robot.intrinsics, robot.image_size, robot.cam_from_robot) as s:
-            SessionJournal(s, robot, replayable=True).round_done(m, MissionResult(m.photos, m.map, rounds=1))
-        state = CaptureSession.open(tmp_path / "s").last_commit["state"]
-        back = [np.asarray(r, float) for r in state["sonar_readings"]]  # as `_resume_adaptive` reads them
+        back = committed(m, robot, tmp_path, "sonar_readings")
         assert len(back) == len(m.sonar_readings) and all(np.array_equal(a, b) for a, b in zip(back, m.sonar_readings))
     finally:
         del m.sonar_readings[n0:]
+
+
+def test_the_space_driven_through_is_committed_with_the_round(office, tmp_path):
+    """A round's commit holds the drives made while localised (`swept`), as a resumed
+    mission reads them back: its grids stay open there too."""
+    m, robot, _ = office
+    swept = m.swept
+    m.swept = [*swept, np.array([[0.5, -1.0], [0.9, -0.8]])]
+    try:
+        back = committed(m, robot, tmp_path, "swept")
+        assert len(back) == len(m.swept) and all(np.array_equal(a, b) for a, b in zip(back, m.swept))
+    finally:
+        m.swept = swept
 
 
 def test_points_in_the_open_room_are_seen_through_and_points_on_its_surfaces_are_not(office):
