@@ -893,12 +893,14 @@ class AdaptiveMission:
         """`grid` with the cells within half the robot's radius of the drives it made while
         localised (`swept`) passable (cost at most `max_path_cost`): its own body drove
         through them, the surest free space it has, whatever the map's points or the photos'
-        views say (half the radius: the estimate's error there, within the filter's spread).
+        views say. Half the radius (the robot's size, not a scene's): a band a cell or two wide
+        along its centre's path, a connected way, not the cells beside a door's jambs.
         Why: a rebuilt grid can close a doorway or a corridor the robot has driven through
         (apartment 2, traced: a new round's grid split the corridor into three parts at the
         bedroom's door; the round's frontier goals, reachable from where the robot stood at
         the round's start, were given up for "no path" once it had driven back to the
-        kitchen, and the bedroom and the corridor's east end were never entered)."""
+        kitchen, and the bedroom and the corridor's east end were never entered; with this,
+        it entered both, and was lost in the bedroom, which the map never reached)."""
         if not self.swept:
             return grid
         near = near_segments(grid, np.array(self.swept), self.config.robot_radius_m / 2)
