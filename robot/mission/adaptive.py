@@ -899,7 +899,7 @@ class AdaptiveMission:
         (apartment 2, traced: a new round's grid split the corridor into three parts at the
         bedroom's door; the round's frontier goals, reachable from where the robot stood at
         the round's start, were given up for "no path" once it had driven back to the
-        kitchen, and the bedroom and the corridor's east end were never entered; with this,
+        kitchen, and the bedroom and the corridor past its door were never entered; with this,
         it entered both, and was lost in the bedroom, which the map never reached)."""
         if not self.swept:
             return grid
