@@ -893,8 +893,11 @@ class AdaptiveMission:
         """`grid` with the cells within half the robot's radius of the drives it made while
         localised (`swept`) passable (cost at most `max_path_cost`): its own body drove
         through them, the surest free space it has, whatever the map's points or the photos'
-        views say. Half the radius (the robot's size, not a scene's): a band a cell or two wide
-        along its centre's path, a connected way, not the cells beside a door's jambs.
+        views say. Half the radius (the robot's size, not a scene's), and at least one cell:
+        a band a cell or two wide along its centre's path, not the cells beside a door's jambs,
+        and 4-connected on any grid (the crossed cells of a diagonal drive touch only at their
+        corners, which A* does not cut; the grid's cells grow with the explored area, 0.06-0.08
+        m in an apartment's first rounds, past half the radius beyond 7.5 m explored).
         Why: a rebuilt grid can close a doorway or a corridor the robot has driven through
         (apartment 2, traced: a new round's grid split the corridor into three parts at the
         bedroom's door; the round's frontier goals, reachable from where the robot stood at
@@ -903,7 +906,7 @@ class AdaptiveMission:
         it entered both, and was lost in the bedroom, which the map never reached)."""
         if not self.swept:
             return grid
-        near = near_segments(grid, np.array(self.swept), self.config.robot_radius_m / 2)
+        near = near_segments(grid, np.array(self.swept), max(self.config.robot_radius_m / 2, grid.cell_m))
         return replace(grid, cost=np.where(near, np.minimum(grid.cost, self.config.max_path_cost), grid.cost))
 
     def _with_bumps(self, grid, contacts: list[np.ndarray], dear: bool = False):

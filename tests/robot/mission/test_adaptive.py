@@ -341,6 +341,25 @@ def test_space_driven_through_while_localised_stays_open(office, monkeypatch):
     assert len(pen.swept) == 3
 
 
+def test_a_diagonal_drive_stays_open_on_a_coarse_grid(office):
+    """On a grid whose cells are wider than half the robot's radius (a large explored area),
+    a drive made localised across blocked cells at 45 degrees is still a way A* can take:
+    the cells it crosses touch only at their corners, which A* does not cut."""
+    from explore.nav_grid import NavGrid
+
+    m, _, _ = office
+    cost = np.full((20, 20), np.inf)
+    grid = NavGrid(np.zeros(2), 0.2, np.zeros_like(cost), cost)
+    swept = m.swept
+    m.swept = [np.array([[0.3, 0.3], [3.5, 3.5]])]
+    try:
+        opened = m._swept_open(grid)
+    finally:
+        m.swept = swept
+    assert plan_path(opened, (0.3, 0.3), (3.5, 3.5), max_cost=m.config.max_path_cost) is not None
+    assert np.isinf(opened.cost[0, 19]) and np.isinf(opened.cost[19, 0])  # only along the drive
+
+
 def test_the_ultrasonic_outranks_stray_map_points(office):
     """Map points the ultrasonic's readings contradict (the fence of `fenced`, where the real
     office is empty) make the grid dear, not blocked: the robot is not trapped by them."""
