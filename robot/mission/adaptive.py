@@ -66,6 +66,7 @@ from ibr.proxy.triangulation import TriangulationConfig, sift_features
 from localization.feature_localizer import FeatureLocalizerConfig, FeatureMap
 from localization.motion_models import wrap_angle
 from robot.mission.bundle import BundleConfig, PairMatches, adjust_grown
+from robot.mission.fix_precision import bias_sensitivity
 from robot.mission.localizer import FilteredBody, MissionFilterConfig, MissionLocalizer
 from robot.mission.look_heading import LookConfig, Occluder, hidden_by, look_heading, retry_heading
 from robot.mission.map_building import (MapConfig, RobotMap, Tracks, at_mount_height, extend_map, robot_pose,
@@ -76,6 +77,15 @@ from robot.mission.repose import ReposeConfig, odometry_held, repose_photos
 from robot.protocol import Photo, Robot, robot_camera
 
 log = logging.getLogger(__name__)
+
+PRECISE_SEEDS_M_PER_PX = 0.075
+"""`AdaptiveConfig.max_seed_m_per_px` with `explore --precise-seeds`: the issue's
+95th-percentile bar (15 cm) over a shared error of a map's points of 2 px (the true camera
+reprojected the inliers of the fixes right to 5 cm at 1.5 px at the median on apartments 2
+and 6, traced). There it would have kept 14 of apartment 2's 51 posed fixes 10-22 cm off
+from posing their photos (among them the goal photo that began its 17 cm-off bedroom) and 9
+of the 176 right to 5 cm; on apartment 6, 4 of 33 and 4 of 128. A camera's pixel and the
+issue's bar, not a scene's length."""
 
 ASIFT_TILTS = (0.5, 2**-0.5, 1.0, 2**0.5, 2.0)
 """The tilts of `AdaptiveConfig.retry_tilts` (the default; `explore --no-retry-tilts`: none):
@@ -221,6 +231,12 @@ class AdaptiveConfig:
     A compass's accuracy, not a scene's."""
     max_fix_height_err_m: float = 0.15
     """A PnP fix whose camera height is off by more than this is rejected (m)."""
+    max_seed_m_per_px: float | None = None
+    """A fix poses its photo, whose points then join the map, only when a pixel of error
+    shared by its inliers moves it by at most this (m, `fix_precision.bias_sensitivity`);
+    a weaker fix is still the filter's measurement. None (the default): every fix poses its
+    photo. `explore --precise-seeds` sets `PRECISE_SEEDS_M_PER_PX`, off by default until the
+    capture's coverage holds with it (module docstring of `fix_precision`)."""
     max_fix_tilt_px: float = 6.0
     """A PnP fix whose camera is tilted out of the map's level (`tilt_of_camera`: the robot
     stands level on a flat floor, and so did its map photos) by more than the angle that
@@ -325,6 +341,8 @@ class AdaptiveMission:
         self._features: dict[int, object] = {}
         self.fixes = self.failed = self.given_up = 0
         self.tilted_fixes = 0
+        self.weak_fixes = 0
+        """Fixes too weak to pose their photo (`_precise`)."""
         """Of `fixes`, those found only by the tilted retry (`AdaptiveConfig.retry_tilts`). Journalled."""
         self.failure_reasons: dict[str, int] = dict.fromkeys(FIX_FAILURES, 0)
         """Why the failed fixes failed (`localise_photo`), a count per reason. Journalled."""
@@ -583,14 +601,16 @@ class AdaptiveMission:
         localiser's tracks (`grow_tracks`), only when the filter was localised before it
         (spread within `relocalise_std_m`): a fix that relocalises a lost filter is believed
         but seeds no map point, since a wrong one would draw the next fixes to its points (the
-        next fix, checked against the filter it moved, seeds them). A goal photo without
-        such a fix is posed at the filter's estimate (`unfixed`)."""
+        next fix, checked against the filter it moved, seeds them). With `max_seed_m_per_px`,
+        nor does a fix its map points could have moved far (`_precise`). A goal photo without such a fix is posed
+        at the filter's estimate (`unfixed`)."""
         photo = self.robot.capture()
         self._last_view = self.robot.odometry().copy()
         localised = not self.lost()
         res = self.localise_photo(photo)
         fixed = res is not None
-        cam = res.camera if fixed and localised else None
+        precise = fixed and self._precise(res)
+        cam = res.camera if precise and localised else None
         if fixed and isinstance(self.body, FilteredBody):
             self.body.est.update_pnp(self.pose_of_camera(res.cam_from_world), res.n_inliers)
         elif fixed:
@@ -608,6 +628,18 @@ class AdaptiveMission:
         self.obs.estimate(self.body.est.pose, "pnp" if fixed else "odometry")
         self.log_particles()
         return mp
+
+    def _precise(self, res) -> bool:
+        """Whether the fix `res` (`PnPResult`) may pose its photo: a shared pixel of error of
+        its inliers moves it by at most `max_seed_m_per_px` (`bias_sensitivity`); counted in
+        `weak_fixes` when not."""
+        if self.config.max_seed_m_per_px is None:
+            return True
+        moved = bias_sensitivity(res.cam_from_world, res.camera.K, res.inlier_xyz, self.robot.cam_from_robot)
+        if moved <= self.config.max_seed_m_per_px:
+            return True
+        self.weak_fixes += 1
+        return False
 
     def log_particles(self) -> None:
         if isinstance(self.body, FilteredBody):

@@ -119,6 +119,7 @@ class SessionJournal(MissionJournal):
                  "particles": loc.pf.particles, "log_w": loc.pf.log_w, "dead_reckoning": loc.dead_reckoning.pose,
                  "path_m": mission.body.path_m, "fixes": mission.fixes, "failed": mission.failed,
                  "failure_reasons": dict(mission.failure_reasons), "tilted_fixes": mission.tilted_fixes,
+                 "weak_fixes": mission.weak_fixes,
                  "given_up": mission.given_up, "goals": mission.goals_reached,
                  "given_up_goals": mission.given_up_goals, "bumps": mission.bumps,
                  "obstacles_met": dict(mission.obstacles_met),

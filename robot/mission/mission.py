@@ -53,6 +53,8 @@ class MissionResult:
     fixes: int = 0
     tilted_fixes: int = 0
     """Of `fixes`, those only the tilted retry found (`AdaptiveConfig.retry_tilts`)."""
+    weak_fixes: int = 0
+    """Of `fixes`, those too weak to pose their photo (`AdaptiveConfig.max_seed_m_per_px`)."""
     failed_fixes: int = 0
     failure_reasons: dict[str, int] = field(default_factory=dict)
     stop_reason: str = ""
@@ -255,6 +257,7 @@ def _resume_adaptive(robot: Robot, state: dict, config: AdaptiveConfig, rng: np.
     mission.fixes, mission.failed, mission.given_up = state["fixes"], state["failed"], state["given_up"]
     mission.failure_reasons.update(state.get("failure_reasons", {}))
     mission.tilted_fixes = state.get("tilted_fixes", 0)
+    mission.weak_fixes = state.get("weak_fixes", 0)
     mission.failed_at_repose = state.get("failed_at_repose", 0)
     mission.goals_reached = [np.asarray(g, float) for g in state["goals"]]
     mission.given_up_goals = [np.asarray(g, float) for g in state.get("given_up_goals", [])]
@@ -299,10 +302,11 @@ def run_mission(robot: Robot, start_pose: np.ndarray, n_random: int, photo_budge
     result.goals, result.given_up = mission.goals_reached, mission.given_up
     result.obstacles_met = dict(mission.obstacles_met)
     result.fixes, result.failed_fixes, result.tilted_fixes = mission.fixes, mission.failed, mission.tilted_fixes
-    result.failure_reasons = dict(mission.failure_reasons)
+    result.failure_reasons, result.weak_fixes = dict(mission.failure_reasons), mission.weak_fixes
     tried = mission.fixes + mission.failed
     tilted = f" ({mission.tilted_fixes} by the tilted retry)" if mission.config.retry_tilts else ""
-    log.info(f"vision fixes: {mission.fixes} of {tried} photos{tilted}; failed: "
+    weak = f", {mission.weak_fixes} too weak to pose their photo" if mission.config.max_seed_m_per_px else ""
+    log.info(f"vision fixes: {mission.fixes} of {tried} photos{tilted}{weak}; failed: "
              + ", ".join(f"{reason} {n}" for reason, n in mission.failure_reasons.items()))
     if isinstance(mission.body, FilteredBody):
         say_if_lost(result, mission.body.est)

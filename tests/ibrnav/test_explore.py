@@ -79,6 +79,20 @@ def test_keeping_off_met_surfaces_is_off_unless_turned_on():
     assert mission_config(parser.parse_args(["--keep-off-surfaces"])).keep_off_surfaces
 
 
+def test_precise_seeds_are_off_unless_turned_on():
+    """By default every vision fix poses its photo; `--precise-seeds` gates it on how far a
+    shared error of its map points moves it (`PRECISE_SEEDS_M_PER_PX`)."""
+    import argparse
+
+    from ibrnav.args import add_mission_args, mission_config
+    from robot.mission.adaptive import PRECISE_SEEDS_M_PER_PX
+
+    parser = argparse.ArgumentParser()
+    add_mission_args(parser, 261)
+    assert mission_config(parser.parse_args([])).max_seed_m_per_px is None
+    assert mission_config(parser.parse_args(["--precise-seeds"])).max_seed_m_per_px == PRECISE_SEEDS_M_PER_PX
+
+
 def test_explore_runs_with_a_seeded_spec(tmp_path):
     report = random_explore(tmp_path, "synthetic:office?seed=3", 3, 0)
     assert report["scene"] == "synthetic:office?seed=3" and report["photos"] == 3
@@ -97,7 +111,8 @@ def test_explore_in_an_apartment_reports_rooms_and_why_it_stopped(tmp_path):
     assert 0 < facing["random"]["p25"] <= facing["random"]["median"] <= facing["random"]["p75"] < 10
     assert report["model_photos_error"] is None
     assert report["localised_at_end"] is None  # no filter in a random capture
-    assert report["pnp_fixes"] == report["pnp_failures"] == 0 and report["pnp_failure_reasons"] == {}
+    assert report["pnp_fixes"] == report["pnp_failures"] == report["pnp_weak_fixes"] == 0
+    assert report["pnp_failure_reasons"] == {}
     assert report["obstacles_met"] == {}  # nor its drives
     assert report["start_anchored"] is None and report["first_map_scale_error"] is None  # nor a first map
     assert report["coverage"] <= report["achievable_coverage"] <= 1

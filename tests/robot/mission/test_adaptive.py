@@ -571,7 +571,7 @@ def test_a_fix_that_relocalises_a_lost_filter_moves_it_but_seeds_no_track(office
 
     m, robot, _ = office
     here = robot_camera(m.body.est.pose, robot.intrinsics, robot.image_size, robot.cam_from_robot)
-    fix = PnPResult(here.cam_from_world, 40, 30, here)
+    fix = PnPResult(here.cam_from_world, 40, 30, here, None, points_in_view(here, 1.0, 1.0))
     monkeypatch.setattr(m.fmap, "localize", lambda image, template, tilts=None: fix)
     for spread, seeds in ((m.config.filter.relocalise_std_m + 0.1, False), (0.0, True)):
         monkeypatch.setattr(m, "spread", lambda spread=spread: spread)
@@ -580,6 +580,40 @@ def test_a_fix_that_relocalises_a_lost_filter_moves_it_but_seeds_no_track(office
         assert m.fixes == fixes + 2
         assert (n in m.unfixed) != seeds and goal.camera is not None
         assert (look.camera is not None) == seeds
+
+
+def points_in_view(cam, depth_m: float, share: float, n: int = 30) -> np.ndarray:
+    """(n, 3) world points `depth_m` in front of `cam` over the central `share` of its image."""
+    rng = np.random.default_rng(0)
+    uv = np.c_[cam.width, cam.height] * (0.5 + share * rng.uniform(-0.5, 0.5, (n, 2)))
+    rays = np.c_[uv, np.ones(n)] @ np.linalg.inv(cam.K).T
+    return (depth_m * rays) @ cam.world_from_cam[:3, :3].T + cam.center
+
+
+def test_a_fix_its_map_points_could_move_far_moves_the_filter_but_poses_no_photo(office, monkeypatch):
+    """With `--precise-seeds`, localised, a fix whose inliers lie in a far, narrow patch (a
+    shared pixel of their error moves it beyond `max_seed_m_per_px`) is the filter's
+    measurement, but its goal photo is posed at the estimate (`unfixed`) and its localise
+    photo gets no pose, and it is counted in `weak_fixes`; the same fix on near points
+    spread over the view poses both, and so does the far one without the flag."""
+    from localization.feature_localizer import PnPResult
+    from robot.mission.adaptive import PRECISE_SEEDS_M_PER_PX
+
+    m, robot, _ = office
+    monkeypatch.setattr(m, "spread", lambda: 0.0)
+    precise = replace(m.config, max_seed_m_per_px=PRECISE_SEEDS_M_PER_PX)
+    for depth, share, config, seeds in ((6.0, 0.1, precise, False), (1.0, 1.0, precise, True),
+                                        (6.0, 0.1, m.config, True)):
+        monkeypatch.setattr(m, "config", config)
+        moved = m.body.est.pose + [0.03, 0.0, 0.0]
+        there = robot_camera(moved, robot.intrinsics, robot.image_size, robot.cam_from_robot)
+        fix = PnPResult(there.cam_from_world, 40, 30, there, None, points_in_view(there, depth, share))
+        monkeypatch.setattr(m.fmap, "localize", lambda image, template, tilts=None, fix=fix: fix)
+        weak, n, before = m.weak_fixes, len(m.photos), m.body.est.pose.copy()
+        goal, look = m.take_photo("goal"), m.take_photo("localise")
+        assert m.weak_fixes == weak + 2 * (not seeds)
+        assert (n in m.unfixed) != seeds and (look.camera is not None) == seeds
+        assert np.hypot(*(m.body.est.pose[:2] - before[:2])) > 0.005  # the filter moved toward the fix
 
 
 def test_a_photo_plain_sift_cannot_fix_is_tried_again_at_simulated_tilts(office, monkeypatch):
