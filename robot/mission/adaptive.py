@@ -341,9 +341,9 @@ class AdaptiveMission:
         self._features: dict[int, object] = {}
         self.fixes = self.failed = self.given_up = 0
         self.tilted_fixes = 0
-        self.weak_fixes = 0
-        """Fixes too weak to pose their photo (`_precise`)."""
         """Of `fixes`, those found only by the tilted retry (`AdaptiveConfig.retry_tilts`). Journalled."""
+        self.weak_fixes = 0
+        """Of `fixes`, those too weak to pose their photo (`_precise`). Journalled."""
         self.failure_reasons: dict[str, int] = dict.fromkeys(FIX_FAILURES, 0)
         """Why the failed fixes failed (`localise_photo`), a count per reason. Journalled."""
         self.failed_at_repose = 0
@@ -602,8 +602,8 @@ class AdaptiveMission:
         (spread within `relocalise_std_m`): a fix that relocalises a lost filter is believed
         but seeds no map point, since a wrong one would draw the next fixes to its points (the
         next fix, checked against the filter it moved, seeds them). With `max_seed_m_per_px`,
-        nor does a fix its map points could have moved far (`_precise`). A goal photo without such a fix is posed
-        at the filter's estimate (`unfixed`)."""
+        nor does a fix its map points could have moved far (`_precise`). A goal photo without
+        such a fix is posed at the filter's estimate (`unfixed`)."""
         photo = self.robot.capture()
         self._last_view = self.robot.odometry().copy()
         localised = not self.lost()

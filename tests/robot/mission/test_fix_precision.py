@@ -34,9 +34,9 @@ def refit(xyz, uv):
 
 
 def test_a_shared_pixel_of_error_moves_the_fix_by_the_sensitivity_at_most():
-    """The least-squares pose of pixels all moved by 1 px along the worst direction moves by the
-    sensitivity (a few per cent: the model is linearised); random errors of at most 1 px
-    per point move it by less."""
+    """Pixels moved by an error of 1 px RMS per point, in the pattern that moves the pose most,
+    move the least-squares pose by the sensitivity (within a few per cent: the model is
+    linearised); random errors of 1 px at every point move it by less."""
     xyz = points_ahead(3.0, 1.0)
     cam = robot_camera(POSE, K, SIZE, MOUNT).cam_from_world
     s = bias_sensitivity(cam, K, xyz, MOUNT)
