@@ -6,9 +6,9 @@ averages out over tens of inliers; an error the points share does not: points tr
 on one wrong camera, or far points whose depth the stereo baseline barely fixes, are off
 together, and the fix moves with them. How far depends on the geometry alone. Near points
 spread over the image pin the camera; far points in a narrow patch leave it free to slide
-along the view. On apartment 2 (traced, main's code) 16 accepted fixes 11-16 cm off were
-fitted to within 0.3-0.9 px by inliers 4-7 m away, while the true camera reprojected the
-same points at only 1.1-2.3 px. The first goal photo such a fix posed (13.6 cm off) seeded
+along the view. On apartment 2 (traced, main's code) nine accepted fixes 11-16 cm off were
+fitted to within 0.3-1.4 px by inliers 4-7.5 m away, while the true camera reprojected the
+same points at only 1.1-2.9 px. The first goal photo such a fix posed (13.6 cm off) seeded
 points that put the next fixes 9-20 cm off, and a whole room was mapped 17 cm off.
 
 `bias_sensitivity` is the size of that slide: the largest robot displacement on the floor
