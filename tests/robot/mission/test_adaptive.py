@@ -1,6 +1,7 @@
 """Adaptive exploration (Foster et al. IV-B) on a map with known geometry: goal picking,
 path following on the localiser's estimate, giving a goal up after k obstacles, rebuilding."""
 
+import copy
 from dataclasses import replace
 
 import numpy as np
@@ -601,7 +602,11 @@ def test_a_fix_its_map_points_could_move_far_moves_the_filter_but_poses_no_photo
 
     m, robot, _ = office
     monkeypatch.setattr(m, "spread", lambda: 0.0)
-    measured = []  # the filter's measurements, recorded rather than made: the fixture is shared
+    # the fixture is shared: the photos go to copies, the filter's measurements are recorded,
+    # not made (a later test places surfaces by the estimate, on a grid over the photos' poses)
+    for name in ("photos", "unfixed", "_last_view"):
+        monkeypatch.setattr(m, name, copy.copy(getattr(m, name)))
+    measured = []
     monkeypatch.setattr(m.body.est, "update_pnp", lambda pose, n_inliers: measured.append(pose))
     precise = replace(m.config, max_seed_m_per_px=PRECISE_SEEDS_M_PER_PX)
     moved = m.body.est.pose + [0.03, 0.0, 0.0]
