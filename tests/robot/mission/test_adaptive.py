@@ -602,10 +602,12 @@ def test_a_fix_its_map_points_could_move_far_moves_the_filter_but_poses_no_photo
 
     m, robot, _ = office
     monkeypatch.setattr(m, "spread", lambda: 0.0)
-    # the fixture is shared: the photos go to copies, the filter's measurements are recorded,
-    # not made (a later test places surfaces by the estimate, on a grid over the photos' poses)
+    # the fixture is shared: the photos go to copies, the camera gives the last photo again (its
+    # noise draws untouched), the filter's measurements are recorded, not made (a later test
+    # places surfaces by the estimate, on a grid over the photos' poses)
     for name in ("photos", "unfixed", "_last_view"):
         monkeypatch.setattr(m, name, copy.copy(getattr(m, name)))
+    monkeypatch.setattr(m.robot, "capture", lambda photo=m.photos[-1].photo: photo)
     measured = []
     monkeypatch.setattr(m.body.est, "update_pnp", lambda pose, n_inliers: measured.append(pose))
     precise = replace(m.config, max_seed_m_per_px=PRECISE_SEEDS_M_PER_PX)
