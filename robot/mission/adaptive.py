@@ -635,7 +635,7 @@ class AdaptiveMission:
         `weak_fixes` when not."""
         if self.config.max_seed_m_per_px is None:
             return True
-        moved = bias_sensitivity(res.cam_from_world, res.camera.K, res.inlier_xyz, self.robot.cam_from_robot)
+        moved = bias_sensitivity(res.camera, res.inlier_xyz, self.robot.cam_from_robot)
         if moved <= self.config.max_seed_m_per_px:
             return True
         self.weak_fixes += 1

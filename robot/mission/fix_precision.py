@@ -33,41 +33,26 @@ from __future__ import annotations
 
 import numpy as np
 
-
-def _projections(cam_from_world: np.ndarray, K: np.ndarray, xyz: np.ndarray) -> np.ndarray:
-    """(2N,) pixel coordinates of the world points `xyz` (N, 3) in the camera, flattened."""
-    Xc = xyz @ cam_from_world[:3, :3].T + cam_from_world[:3, 3]
-    return ((Xc[:, :2] / Xc[:, 2:3]) @ K[:2, :2].T + K[:2, 2]).ravel()
+from ibr.camera import Camera
+from localization.pose_views import se2_matrix
 
 
-def _moved(world_from_robot: np.ndarray, dx: float, dy: float, dtheta: float) -> np.ndarray:
-    """(4, 4) the robot pose moved on the floor by (dx, dy) m (world frame) and turned by
-    `dtheta` rad about its own vertical axis."""
-    c, s = np.cos(dtheta), np.sin(dtheta)
-    turn = np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
-    moved = world_from_robot @ turn
-    moved[:2, 3] += (dx, dy)
-    return moved
-
-
-def bias_sensitivity(cam_from_world: np.ndarray, K: np.ndarray, xyz: np.ndarray,
-                     cam_from_robot: np.ndarray) -> float:
+def bias_sensitivity(camera: Camera, xyz: np.ndarray, cam_from_robot: np.ndarray) -> float:
     """Metres of robot displacement on the floor per pixel of error shared by the inlier
-    points `xyz` (N, 3) (world m) of a fix `cam_from_world` (4, 4) of a camera `K` (3, 3) on
-    the robot's mount `cam_from_robot` (4, 4) (module docstring). inf when the points do not
-    fix the pose (fewer than 2, or degenerate)."""
+    points `xyz` (N, 3) (world m) of a fix's `camera` (at the fix's pose) on the robot's
+    mount `cam_from_robot` (4, 4) (module docstring). inf when the points do not fix the
+    pose (fewer than 2, or degenerate)."""
     xyz = np.asarray(xyz, float).reshape(-1, 3)
     if len(xyz) < 2:
         return float("inf")
-    world_from_robot = np.linalg.inv(cam_from_world) @ cam_from_robot
+    world_from_robot = camera.world_from_cam @ cam_from_robot
     robot_from_cam = np.linalg.inv(cam_from_robot)
-    uv = _projections(cam_from_world, K, xyz)
+    uv = camera.project(xyz)[0].ravel()
     J = np.empty((len(uv), 3))
     for k, h in enumerate((1e-4, 1e-4, 1e-5)):  # m, m, rad: far below any fix's error
-        step = np.zeros(3)
-        step[k] = h
-        moved = np.linalg.inv(_moved(world_from_robot, *step) @ robot_from_cam)
-        J[:, k] = (_projections(moved, K, xyz) - uv) / h
+        dx, dy, dtheta = np.eye(3)[k] * h  # moved on the floor (world frame), turned about its own axis
+        moved = se2_matrix((dx, dy, 0.0)) @ world_from_robot @ se2_matrix((0.0, 0.0, dtheta)) @ robot_from_cam
+        J[:, k] = (camera.with_pose(np.linalg.inv(moved)).project(xyz)[0].ravel() - uv) / h
     normal = J.T @ J / len(xyz)
     if np.linalg.cond(normal) > 1e12:
         return float("inf")

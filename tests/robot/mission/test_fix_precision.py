@@ -7,7 +7,7 @@ from scipy.optimize import least_squares
 
 from localization.pose_views import robot_camera
 from robot.mission.adaptive import PRECISE_SEEDS_M_PER_PX, AdaptiveConfig, AdaptiveMission
-from robot.mission.fix_precision import _projections, bias_sensitivity
+from robot.mission.fix_precision import bias_sensitivity
 from robot.sim_robot import SimRobotConfig, forward_camera_mount
 
 K = np.array([[277.0, 0, 160], [0, 277.0, 120], [0, 0, 1]])
@@ -26,10 +26,15 @@ def points_ahead(distance_m, half_width_m, n=40, seed=0):
             + rng.uniform(0.0, 1.0, (n, 1)) * np.array([0, 0, 1.0]))
 
 
+def pixels(pose, xyz):
+    """(2N,) the pixels of `xyz` (N, 3) in the camera of the robot at `pose` (3,), flattened."""
+    return robot_camera(pose, K, SIZE, MOUNT).project(xyz)[0].ravel()
+
+
 def refit(xyz, uv):
     """The robot pose (3,) whose camera best fits the pixels `uv` (2N,) of `xyz` (least squares)."""
     def residual(p):
-        return _projections(robot_camera(p, K, SIZE, MOUNT).cam_from_world, K, xyz) - uv
+        return pixels(p, xyz) - uv
     return least_squares(residual, POSE, x_scale=[0.1, 0.1, 0.01], xtol=1e-12, ftol=1e-12).x
 
 
@@ -38,11 +43,9 @@ def test_a_shared_pixel_of_error_moves_the_fix_by_the_sensitivity_at_most():
     move the least-squares pose by the sensitivity (within a few per cent: the model is
     linearised); random errors of 1 px at every point move it by less."""
     xyz = points_ahead(3.0, 1.0)
-    cam = robot_camera(POSE, K, SIZE, MOUNT).cam_from_world
-    s = bias_sensitivity(cam, K, xyz, MOUNT)
-    uv = _projections(cam, K, xyz)
-    J = np.array([(_projections(robot_camera(POSE + d, K, SIZE, MOUNT).cam_from_world, K, xyz) - uv) / 1e-5
-                  for d in np.eye(3) * 1e-5]).T
+    s = bias_sensitivity(robot_camera(POSE, K, SIZE, MOUNT), xyz, MOUNT)
+    uv = pixels(POSE, xyz)
+    J = np.array([(pixels(POSE + d, xyz) - uv) / 1e-5 for d in np.eye(3) * 1e-5]).T
     # the pixel error of RMS 1 px per point that moves the (x, y) fix most: J (J^T J)^-1 along
     # the top eigenvector of the (x, y) block of (J^T J)^-1
     cov = np.linalg.inv(J.T @ J)
@@ -61,13 +64,13 @@ def test_far_points_in_a_narrow_patch_hold_a_fix_less_than_near_spread_ones():
     """Near points spread over the view pin the robot to a few cm per pixel, below the gate
     (`PRECISE_SEEDS_M_PER_PX`, `explore --precise-seeds`); the same number of points 6 m away in a narrower
     patch leave it free by metres along the view. One point fixes nothing."""
-    cam = robot_camera(POSE, K, SIZE, MOUNT).cam_from_world
+    cam = robot_camera(POSE, K, SIZE, MOUNT)
     gate = PRECISE_SEEDS_M_PER_PX
-    near = bias_sensitivity(cam, K, points_ahead(1.0, 0.5), MOUNT)
-    wider = bias_sensitivity(cam, K, points_ahead(6.0, 2.0), MOUNT)
-    far = bias_sensitivity(cam, K, points_ahead(6.0, 0.3), MOUNT)
+    near = bias_sensitivity(cam, points_ahead(1.0, 0.5), MOUNT)
+    wider = bias_sensitivity(cam, points_ahead(6.0, 2.0), MOUNT)
+    far = bias_sensitivity(cam, points_ahead(6.0, 0.3), MOUNT)
     assert near < 0.5 * gate and gate < wider < far and far > 1.0
-    assert bias_sensitivity(cam, K, points_ahead(3.0, 1.0)[:1], MOUNT) == np.inf
+    assert bias_sensitivity(cam, points_ahead(3.0, 1.0)[:1], MOUNT) == np.inf
 
 
 def test_a_weak_fix_is_counted_and_poses_no_photo():
